@@ -109,10 +109,12 @@ def literal_kernel(n: int, a: float) -> NDArray[np.float64]:
 
     ``a^d (mu^(N-2d) + lambda^(N-2d)) / (sqrt(1+4a) (mu^N - lambda^N))`` with
     d = min(|i-j|, N-|i-j|).  Mathematically equal to :func:`green_kernel`
-    and accurate to about 1e-14 while it is finite, but mu^N overflows
-    float64 once N ln(mu) > 709: from N = 543 at a = 10 and N = 302 at
-    a = 100 the weights hold inf or nan.  Never used by the solvers; kept so
-    tests and benchmarks can show the failure the stable form fixes.
+    and accurate to about 1e-14 while s mu^N fits in float64, but once
+    N ln(mu) exceeds about 709 the denominator overflows: from N = 1474 at
+    a = 1, N = 541 at a = 10 and N = 301 at a = 100 every weight is silently
+    0 (100 % error), and a few nodes later inf or nan.  Never used by the
+    solvers; kept so tests and benchmarks can show the failure the stable
+    form fixes.
 
     Parameters
     ----------
