@@ -8,6 +8,8 @@ Main entry points: :func:`deform` (equilibrium displacements under forces)
 and :class:`Chain` (a contour model with static and dynamic updates).
 """
 
+from typing import TYPE_CHECKING
+
 from engine.chain import Chain, ChainState
 from engine.deform import METHODS, deform
 from engine.green import green_kernel, literal_kernel, paper_radius, tolerance_radius
@@ -18,6 +20,9 @@ __all__ = [
     "METHODS",
     "Chain",
     "ChainState",
+    "TrackResult",
+    "Tracker",
+    "TrackerOptions",
     "deform",
     "green_kernel",
     "laplacian",
@@ -30,3 +35,17 @@ __all__ = [
 ]
 
 __version__ = "0.1.0"
+
+_LAZY = dict.fromkeys(("Tracker", "TrackResult", "TrackerOptions"), "engine.tracker")
+
+if TYPE_CHECKING:
+    from engine.tracker import Tracker, TrackerOptions, TrackResult
+
+
+def __getattr__(name: str) -> object:
+    """Import the tracker (and OpenCV) only when it is first used."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'engine' has no attribute {name!r}")

@@ -1,0 +1,202 @@
+"""Motion prediction between frames: pyramidal Lucas-Kanade, forward-backward
+checked, and a robust similarity fit (OpenCV).
+
+Coordinates are ``[x, y]`` pixels (x = column, y = row).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import contour_to_mask
+
+__all__ = ["Motion", "estimate_motion"]
+
+
+@dataclass(frozen=True, slots=True)
+class Motion:
+    """A 2 x 3 similarity transform and how well the points supported it.
+
+    Attributes
+    ----------
+    matrix : numpy.ndarray
+        2 x 3 float64, maps ``[x, y, 1]`` of the previous frame to the current one.
+    inlier_ratio : float
+        Share of the tracked points that passed the forward-backward check
+        and agreed with the fit, in [0, 1].
+    points : int
+        How many points were tracked.
+    """
+
+    matrix: NDArray[np.float64]
+    inlier_ratio: float
+    points: int
+
+    def apply(self, nodes: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Transform ``[x, y]`` nodes."""
+        result: NDArray[np.float64] = nodes @ self.matrix[:, :2].T + self.matrix[:, 2]
+        return result
+
+    @staticmethod
+    def identity(points: int = 0) -> Motion:
+        """No motion, no support."""
+        return Motion(np.hstack([np.eye(2), np.zeros((2, 1))]), 0.0, points)
+
+
+def _features(
+    grey: NDArray[np.uint8], nodes: NDArray[np.float64], max_features: int
+) -> NDArray[np.float32]:
+    """Corners inside (and just around) the contour, plus every other contour node."""
+    mask = np.asarray(
+        cv2.dilate(contour_to_mask(nodes, grey.shape), np.ones((7, 7), np.uint8)), np.uint8
+    )
+    corners = cv2.goodFeaturesToTrack(
+        grey, maxCorners=max_features, qualityLevel=0.01, minDistance=5, mask=mask, blockSize=5
+    )
+    pts = nodes[::4].astype(np.float32)
+    if corners is not None:
+        pts = np.vstack([pts, corners.reshape(-1, 2)])
+    return pts
+
+
+def _window(
+    shape: tuple[int, ...], nodes: NDArray[np.float64], margin: int
+) -> tuple[int, int, int, int]:
+    """Bounding box of the nodes grown by ``margin``, clipped to the frame."""
+    h, w = shape[:2]
+    x0, y0 = np.floor(nodes.min(axis=0)).astype(int) - margin
+    x1, y1 = np.ceil(nodes.max(axis=0)).astype(int) + margin + 1
+    x0, y0 = min(max(int(x0), 0), w - 1), min(max(int(y0), 0), h - 1)
+    return x0, y0, max(min(int(x1), w), x0 + 1), max(min(int(y1), h), y0 + 1)
+
+
+def estimate_motion(
+    previous: NDArray[np.uint8],
+    current: NDArray[np.uint8],
+    nodes: NDArray[np.float64],
+    *,
+    max_features: int = 80,
+    window: int = 15,
+    levels: int = 3,
+    fb_threshold: float = 1.0,
+    ransac_threshold: float = 2.0,
+) -> Motion:
+    """Similarity motion of the object between two grey frames.
+
+    Parameters
+    ----------
+    previous, current : numpy.ndarray
+        Grey uint8 frames of equal size.
+    nodes : numpy.ndarray
+        The contour in ``previous``, (N, 2) ``[x, y]``.
+    max_features : int
+        Corners sought inside the contour (besides the nodes themselves).
+    window, levels : int
+        Lucas-Kanade window side and pyramid levels.
+    fb_threshold : float
+        Largest forward-backward error (pixels) of a kept point.
+    ransac_threshold : float
+        RANSAC reprojection threshold (pixels).
+
+    Returns
+    -------
+    Motion
+        Identity with zero support when too few points survive.
+    """
+    # Work on the object's surroundings only: the search reaches about
+    # window * 2^levels pixels, so crop with that margin.
+    x0, y0, x1, y1 = _window(previous.shape, nodes, window * (1 << levels))
+    previous, current = previous[y0:y1, x0:x1], current[y0:y1, x0:x1]
+    origin = np.array([x0, y0], dtype=np.float64)
+    pts = _features(previous, nodes - origin, max_features)
+    h, w = previous.shape
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
+    pts = pts[inside]
+    if len(pts) < 3:
+        return Motion.identity(len(pts))
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
+
+    def flow(
+        a: NDArray[np.uint8], b: NDArray[np.uint8], p: NDArray[np.float32]
+    ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
+        moved, status, _ = cv2.calcOpticalFlowPyrLK(
+            a, b, p, p.copy(), winSize=(window, window), maxLevel=levels, criteria=criteria
+        )
+        return np.asarray(moved, np.float32).reshape(-1, 2), np.asarray(status, np.uint8)
+
+    fwd, st1 = flow(previous, current, pts)
+    back, st2 = flow(current, previous, fwd)
+    fb = np.linalg.norm(back - pts, axis=1)
+    good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < fb_threshold)
+    if good.sum() < 3:
+        return Motion.identity(len(pts))
+    src, dst = pts[good], fwd[good]
+    matrix, inliers = cv2.estimateAffinePartial2D(
+        src, dst, method=cv2.RANSAC, ransacReprojThreshold=ransac_threshold, maxIters=500
+    )
+    if matrix is None or not np.isfinite(matrix).all():
+        shift = np.median(dst - src, axis=0)
+        matrix = np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]]])
+        support = float(good.mean()) * 0.5
+    else:
+        support = float(inliers.sum()) / len(pts)
+    matrix = np.asarray(matrix, dtype=np.float64)
+    # back to frame coordinates: T(o) M T(-o)
+    matrix[:, 2] += origin - matrix[:, :2] @ origin
+    return Motion(matrix, support, len(pts))
+
+
+def node_flow(
+    previous: NDArray[np.uint8],
+    current: NDArray[np.uint8],
+    nodes: NDArray[np.float64],
+    inward: NDArray[np.float64],
+    *,
+    depth: float = 3.0,
+    margin: int = 48,
+) -> NDArray[np.float64]:
+    """Dense optical flow (OpenCV DIS) sampled just inside each node.
+
+    Parameters
+    ----------
+    previous, current : numpy.ndarray
+        Grey uint8 frames of equal size.
+    nodes : numpy.ndarray
+        (N, 2) ``[x, y]`` contour in ``previous``.
+    inward : numpy.ndarray
+        (N, 2) unit vectors into the object; the flow is read ``depth``
+        pixels that way, on the object's side of the boundary.
+    depth : float
+        Sampling depth inside the object (pixels).
+    margin : int
+        Context kept around the contour for the flow computation (pixels).
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 2) displacement of each node from ``previous`` to ``current``.
+    """
+    x0, y0, x1, y1 = _window(previous.shape, nodes, margin)
+    a = np.ascontiguousarray(previous[y0:y1, x0:x1])
+    b = np.ascontiguousarray(current[y0:y1, x0:x1])
+    if min(a.shape) < 8:
+        return np.zeros_like(nodes)
+    dis = cv2.DISOpticalFlow.create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
+    flow = np.asarray(dis.calc(a, b, np.zeros((*a.shape, 2), np.float32)), dtype=np.float32)
+    where = (nodes + depth * inward - [x0, y0]).astype(np.float32).reshape(-1, 1, 2)
+    sampled = [
+        cv2.remap(
+            np.ascontiguousarray(flow[..., k]),
+            where[..., 0],
+            where[..., 1],
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        ).reshape(-1)
+        for k in (0, 1)
+    ]
+    result = np.stack(sampled, axis=1).astype(np.float64)
+    return np.where(np.isfinite(result), result, 0.0)

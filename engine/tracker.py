@@ -1,0 +1,402 @@
+"""``Tracker``: follow an object's boundary through video frames.
+
+Per frame (``step``):
+
+1. predict the object's motion: pyramidal Lucas-Kanade on the contour and on
+   corners inside it, forward-backward checked, with a RANSAC similarity fit
+   (:mod:`engine.motion`);
+2. refine: each node seeks the boundary along its normal (colour model and
+   edges, :mod:`engine.image_forces`); the pulls are forces on the chain,
+   whose equilibrium around the predicted shape, X = X0 + U with
+   (I + K) U = F (paper eq. 13-16, :func:`engine.deform`), keeps the shape
+   plausible through noise, clutter and occlusion;
+3. resample by arc length and guard against crossing, collapse and NaN.
+
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import dataclasses
+import zlib
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from engine._validation import as_stiffness
+from engine.appearance import AppearanceModel
+from engine.deform import deform
+from engine.geometry import as_nodes, polygon_area, resample, self_intersects
+from engine.image_forces import Maps, edge_map, find_boundary, outward_normals
+from engine.motion import Motion, estimate_motion, node_flow
+
+__all__ = ["TrackResult", "Tracker", "TrackerOptions"]
+
+STATE_VERSION = 1
+MIN_SIDE = 16  # frames smaller than this carry no trackable information
+
+
+@dataclass(frozen=True, slots=True)
+class TrackerOptions:
+    """Tuning of :class:`Tracker`; the defaults are meant to be good.
+
+    Attributes
+    ----------
+    stiffness : float
+        ``a = k/m`` of the chain that regularises the image forces.
+    search_radius : int
+        How far (pixels) each node looks for the boundary on the first iteration.
+    iterations : int
+        Most refinement iterations per frame.
+    tolerance : float
+        Converged when no node moved more than this (pixels) in an iteration.
+    region_weight, edge_weight, distance_penalty : float
+        Cue weights of :func:`engine.image_forces.find_boundary`.
+    band : int
+        Width (pixels) of the background ring of the colour model.
+    learning_rate : float
+        Share of each confident frame blended into the colour model.
+    max_features : int
+        Corners tracked inside the object for the motion prediction.
+    flow_stiffness : float
+        ``a`` of the chain that smooths the per-node optical flow added to
+        the similarity prediction (0 disables the non-rigid prediction).
+    """
+
+    stiffness: float = 40.0
+    search_radius: int = 12
+    iterations: int = 10
+    tolerance: float = 0.25
+    region_weight: float = 1.0
+    edge_weight: float = 0.5
+    distance_penalty: float = 0.15
+    band: int = 15
+    learning_rate: float = 0.05
+    max_features: int = 80
+    flow_stiffness: float = 20.0
+
+    def __post_init__(self) -> None:
+        as_stiffness(self.stiffness)
+        for name in ("search_radius", "iterations", "band", "max_features"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1; got {value!r}")
+        for name in (
+            "tolerance",
+            "region_weight",
+            "edge_weight",
+            "distance_penalty",
+            "flow_stiffness",
+        ):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
+                raise ValueError(f"{name} must be a number >= 0; got {value!r}")
+        if not 0.0 <= self.learning_rate <= 1.0:
+            raise ValueError(f"learning_rate must be in [0, 1]; got {self.learning_rate!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class TrackResult:
+    """Result of one :meth:`Tracker.step`.
+
+    Attributes
+    ----------
+    nodes : numpy.ndarray
+        (N, 2) float64 contour, ``[x, y]`` pixels.
+    iterations : int
+        Refinement iterations run.
+    converged : bool
+        Whether the refinement settled before the iteration limit.
+    confidence : float
+        In [0, 1]; drops when the object is lost (little motion support and
+        no boundary evidence).
+    """
+
+    nodes: NDArray[np.float64]
+    iterations: int
+    converged: bool
+    confidence: float
+
+
+def _as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Validate a frame; return it as (BGR or grey image, grey image)."""
+    if not isinstance(frame, np.ndarray):
+        raise ValueError(f"frame must be a numpy array; got {type(frame).__name__}")
+    if frame.dtype != np.uint8:
+        raise ValueError(f"frame must be uint8 (as OpenCV decodes images); got {frame.dtype}")
+    if frame.size == 0:
+        raise ValueError(f"frame is empty: shape {frame.shape}")
+    if frame.ndim == 3 and frame.shape[2] == 1:
+        frame = frame[..., 0]
+    if frame.ndim == 2:
+        grey = np.ascontiguousarray(frame)
+        return grey, grey
+    if frame.ndim == 3 and frame.shape[2] in (3, 4):
+        colour = np.ascontiguousarray(frame[..., :3])
+        return colour, np.asarray(cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+    raise ValueError(f"frame must be H x W grey or H x W x 3 BGR; got shape {frame.shape}")
+
+
+class Tracker:
+    """Follows an object's boundary, frame by frame.
+
+    Parameters
+    ----------
+    nodes : array_like
+        Initial contour on the first frame given to :meth:`step`, (N, 2)
+        ``[x, y]`` pixels, N >= 3; resampled evenly by arc length.
+    closed : bool, default True
+        Only closed contours (object boundaries) are tracked.
+    stiffness : float, optional
+        ``a = k/m`` of the chain (default :attr:`TrackerOptions.stiffness`).
+    **options
+        Other :class:`TrackerOptions` fields.
+
+    Raises
+    ------
+    ValueError
+        On a malformed contour (shape, non-finite, zero length) or option.
+    """
+
+    def __init__(
+        self,
+        nodes: ArrayLike,
+        *,
+        closed: bool = True,
+        stiffness: float | None = None,
+        **options: Any,
+    ) -> None:
+        if not closed:
+            raise ValueError("the tracker follows object boundaries: closed contours only")
+        if stiffness is not None:
+            options["stiffness"] = stiffness
+        try:
+            self.options = TrackerOptions(**options)
+        except TypeError as exc:
+            raise ValueError(f"unknown tracker option: {exc}") from None
+        self._nodes = self._initial(nodes)
+        self._previous: NDArray[np.uint8] | None = None
+        self._model: AppearanceModel | None = None
+        self.frame_index = -1
+
+    @staticmethod
+    def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
+        arr = as_nodes(nodes)
+        out = resample(arr, len(arr))
+        if np.ptp(out, axis=0).max() <= 0:
+            raise ValueError("the contour has zero length (all nodes coincide)")
+        return out
+
+    @property
+    def nodes(self) -> NDArray[np.float64]:
+        """The current contour, (N, 2) ``[x, y]`` (a copy)."""
+        return self._nodes.copy()
+
+    def reset(self, nodes: ArrayLike) -> None:
+        """Place a new contour; the next frame is taken as the one it lies on."""
+        self._nodes = self._initial(nodes)
+        self._previous = None
+        self._model = None
+
+    def step(self, frame: NDArray[np.uint8]) -> TrackResult:
+        """Track into the next frame.
+
+        The first frame (and the first after :meth:`reset`) only initialises
+        the colour model from the given contour and returns it unchanged.
+
+        Parameters
+        ----------
+        frame : numpy.ndarray
+            H x W grey or H x W x 3 BGR uint8.
+
+        Returns
+        -------
+        TrackResult
+
+        Raises
+        ------
+        ValueError
+            If the frame is not a non-empty uint8 image.
+        """
+        image, grey = _as_frame(frame)
+        self.frame_index += 1
+        opts = self.options
+        if min(grey.shape) < MIN_SIDE:
+            return self._result(0, False, 0.0)
+        if self._previous is None or self._previous.shape != grey.shape or self._model is None:
+            self._previous = grey
+            self._model = AppearanceModel.fit(image, self._nodes, opts.band)
+            return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
+        motion = estimate_motion(self._previous, grey, self._nodes, max_features=opts.max_features)
+        predicted = motion.apply(self._nodes)  # a similarity cannot make it cross itself
+        if not self._valid(predicted, grey.shape, check_crossing=False):
+            predicted, motion = self._nodes, Motion.identity()
+        if opts.flow_stiffness > 0:
+            # non-rigid part: the object's own flow at each node, beyond the
+            # similarity, smoothed as the equilibrium of the chain (eq. 16)
+            flow = node_flow(self._previous, grey, self._nodes, -outward_normals(self._nodes))
+            residual = (self._nodes + flow) - predicted
+            bent = predicted + deform(residual, opts.flow_stiffness)
+            if self._valid(bent, grey.shape):
+                predicted = bent
+        refined, iterations, converged, contrast = self._refine(image, grey, predicted)
+        confidence = float(np.clip(0.4 * motion.inlier_ratio + 0.6 * contrast, 0.0, 1.0))
+        if not self._visible(grey):
+            confidence = 0.0
+        self._nodes = refined
+        self._previous = grey
+        if confidence >= 0.5 and opts.learning_rate > 0:
+            self._model = self._model.updated(image, refined, opts.band, opts.learning_rate)
+        return self._result(iterations, converged, confidence)
+
+    def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
+        return TrackResult(self._nodes.copy(), iterations, converged, confidence)
+
+    def _visible(self, grey: NDArray[np.uint8]) -> bool:
+        h, w = grey.shape
+        lo, hi = self._nodes.min(axis=0), self._nodes.max(axis=0)
+        return bool(hi[0] >= 0 and hi[1] >= 0 and lo[0] < w and lo[1] < h)
+
+    def _valid(
+        self, nodes: NDArray[np.float64], shape: tuple[int, ...], *, check_crossing: bool = True
+    ) -> bool:
+        """Finite, not collapsed, not exploded and (optionally) not self-crossing."""
+        if not np.isfinite(nodes).all():
+            return False
+        area = abs(polygon_area(nodes))
+        ref = abs(polygon_area(self._nodes))
+        extent = float(np.ptp(nodes, axis=0).max())
+        if area < 0.2 * ref or area > 25.0 * ref or extent > 4 * max(shape):
+            return False
+        return not (check_crossing and self_intersects(nodes))
+
+    def _maps(
+        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], nodes: NDArray[np.float64]
+    ) -> Maps:
+        h, w = grey.shape
+        margin = 2 * self.options.search_radius + 4
+        x0, y0 = np.floor(nodes.min(axis=0)).astype(int) - margin
+        x1, y1 = np.ceil(nodes.max(axis=0)).astype(int) + margin
+        x0, y0 = min(max(x0, 0), w - 1), min(max(y0, 0), h - 1)
+        x1, y1 = max(min(x1, w), x0 + 1), max(min(y1, h), y0 + 1)
+        assert self._model is not None
+        return Maps(
+            (int(x0), int(y0)),
+            self._model.probability(image[y0:y1, x0:x1]),
+            edge_map(grey[y0:y1, x0:x1]),
+        )
+
+    def _refine(
+        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], rest: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], int, bool, float]:
+        """Equilibrium of the chain around the predicted shape under image forces."""
+        opts = self.options
+        maps = self._maps(image, grey, rest)
+        x = rest
+        converged = False
+        it = 0
+        contrast = 0.0
+        for it in range(1, opts.iterations + 1):
+            radius = max(3, round(opts.search_radius * (1.0 - (it - 1) / opts.iterations)))
+            normals = outward_normals(x)
+            ev = find_boundary(
+                maps,
+                x,
+                normals,
+                radius,
+                region_weight=opts.region_weight,
+                edge_weight=opts.edge_weight,
+                distance_penalty=opts.distance_penalty,
+            )
+            contrast = ev.contrast
+            pull = (ev.strength * ev.offset)[:, None] * normals
+            forces = (x - rest) + pull
+            candidate = rest + deform(forces, opts.stiffness)
+            if not np.isfinite(candidate).all():
+                break
+            moved = float(np.abs(candidate - x).max())
+            x = candidate
+            if moved < opts.tolerance:
+                converged = True
+                break
+        out = resample(x, len(x))
+        if not self._valid(out, grey.shape):
+            out = rest if self._valid(rest, grey.shape, check_crossing=False) else self._nodes
+            contrast = 0.0
+        return out, it, converged, max(contrast, 0.0)
+
+    # --- serialisation -------------------------------------------------------------
+
+    def to_state(self, *, include_frame: bool = True) -> dict[str, Any]:
+        """A JSON-able snapshot from which :meth:`from_state` resumes tracking.
+
+        Parameters
+        ----------
+        include_frame : bool
+            Keep the previous grey frame (PNG, base64) so motion prediction
+            continues seamlessly; without it the next frame re-initialises.
+        """
+        state: dict[str, Any] = {
+            "version": STATE_VERSION,
+            "nodes": self._nodes.tolist(),
+            "options": dataclasses.asdict(self.options),
+            "frame_index": self.frame_index,
+            "model": None,
+            "previous": None,
+        }
+        if self._model is not None and self._previous is not None and include_frame:
+            state["model"] = {
+                "object": _pack(self._model.object_hist),
+                "background": _pack(self._model.background_hist),
+            }
+            ok, png = cv2.imencode(".png", self._previous)
+            if ok:
+                state["previous"] = base64.b64encode(png.tobytes()).decode("ascii")
+        return state
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any]) -> Tracker:
+        """Rebuild a tracker from :meth:`to_state` output.
+
+        Raises
+        ------
+        ValueError
+            If the state is malformed or of another version.
+        """
+        if not isinstance(state, dict) or state.get("version") != STATE_VERSION:
+            raise ValueError(f"tracker state must be a dict of version {STATE_VERSION}")
+        try:
+            tracker = cls(state["nodes"], **dict(state["options"]))
+            tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
+            tracker.frame_index = int(state["frame_index"])
+            model, previous = state.get("model"), state.get("previous")
+            if model is not None and previous is not None:
+                png = np.frombuffer(base64.b64decode(previous, validate=True), np.uint8)
+                grey = cv2.imdecode(png, cv2.IMREAD_GRAYSCALE)
+                if grey is None:
+                    raise ValueError("previous frame does not decode")
+                tracker._previous = np.asarray(grey, dtype=np.uint8)
+                tracker._model = AppearanceModel(
+                    _unpack(model["object"]), _unpack(model["background"])
+                )
+        except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
+            raise ValueError(f"malformed tracker state: {exc}") from None
+        return tracker
+
+
+def _pack(values: NDArray[np.float64]) -> str:
+    """Histogram as base64 of zlib-compressed little-endian float64 (exact, compact)."""
+    return base64.b64encode(zlib.compress(values.astype("<f8").tobytes())).decode("ascii")
+
+
+def _unpack(text: str) -> NDArray[np.float64]:
+    raw = zlib.decompress(base64.b64decode(text, validate=True))
+    values = np.frombuffer(raw, dtype="<f8").astype(np.float64)
+    if not np.isfinite(values).all() or (values < 0).any():
+        raise ValueError("histogram values must be finite and >= 0")
+    return values
