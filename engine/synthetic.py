@@ -1,0 +1,369 @@
+"""Seeded synthetic tracking sequences with ground-truth masks.
+
+A smooth deformable blob (a circle whose radius is modulated by 2-4 low
+harmonics with slowly varying amplitudes and phases) moves along a smooth
+trajectory (translation plus mild rotation) over a background.  Each of
+:data:`CONDITIONS` adds one difficulty on top of ``"plain"``.
+
+Conventions: points are ``[x, y]`` pixels (x = column, y = row, a pixel's
+centre has integer coordinates), frames are H x W x 3 BGR ``uint8`` as OpenCV
+gives them, masks are H x W ``uint8`` with 0 = background and 255 = object.
+The mask is the object's whole silhouette at that frame: it is *amodal*, so
+the occluder of ``"occluder"`` does not cut it (a tracker is expected to keep
+the shape through the occlusion), and it is not blurred in ``"motion_blur"``.
+Masks are filled with :func:`engine.geometry.contour_to_mask` (pixel centres
+inside the outline); frames are anti-aliased by 4 x 4 supersampled coverage.
+
+The object always stays at least 10 pixels inside the frame.  Speeds are in
+pixels per frame and do not depend on the frame size; the object's radius
+(about 50-70 pixels) shrinks only for frames smaller than 480 pixels.
+Generation is deterministic for a given ``seed`` and condition.  Motion and
+shape change are set per frame, so a shorter sequence is a prefix of a longer
+one with the same seed, except where the timing is spread over the whole
+sequence: the growth or shrinkage of ``"scale_change"`` (a factor 2 in radius
+from first to last frame), the pass of the ``"occluder"`` bar (clear of the
+object in the first and last frames) and where ``"clutter"`` places the
+distractors it puts on the object's path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from statistics import NormalDist
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import contour_to_mask
+
+__all__ = ["CONDITIONS", "SyntheticSequence", "make_sequence"]
+
+CONDITIONS: tuple[str, ...] = (
+    "plain",
+    "noise",
+    "strong_noise",
+    "clutter",
+    "fast_motion",
+    "motion_blur",
+    "low_contrast",
+    "shape_change",
+    "scale_change",
+    "occluder",
+    "textured",
+    "matched_background",
+)
+
+MIN_SIZE = 96
+"""Smallest accepted height and width, in pixels."""
+
+_MARGIN = 12.0  # pixels between the outline's extreme points and the frame edge (mask: >= 10)
+_VERTICES = 360
+_SS = 4  # supersampling factor for anti-aliased coverage
+_OCCLUDER_BGR = (40.0, 165.0, 40.0)  # saturated green bar of "occluder"
+
+F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+U8 = NDArray[np.uint8]
+
+
+@dataclass(frozen=True)
+class SyntheticSequence:
+    """A generated sequence and its ground truth.
+
+    Attributes
+    ----------
+    condition : str
+        One of :data:`CONDITIONS`.
+    frames : tuple of numpy.ndarray
+        H x W x 3 BGR ``uint8`` images (read-only).
+    masks : tuple of numpy.ndarray
+        H x W ``uint8``, 0 background / 255 object, the amodal silhouette (read-only).
+    """
+
+    condition: str
+    frames: tuple[U8, ...]
+    masks: tuple[U8, ...]
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+
+@dataclass(frozen=True)
+class _Knobs:
+    speed: tuple[float, float] = (2.0, 5.0)  # px/frame
+    noise: float = 2.0  # sensor noise sigma, grey levels
+    shape: tuple[float, float] = (0.06, 0.12)  # total harmonic amplitude / radius
+    period: tuple[float, float] = (40.0, 90.0)  # frames per cycle of the shape change
+    scale: float = 1.0  # radius factor from the first to the last frame (or its inverse)
+
+
+_KNOBS: dict[str, _Knobs] = {
+    "noise": _Knobs(noise=10.0),
+    "strong_noise": _Knobs(noise=25.0),
+    "fast_motion": _Knobs(speed=(17.0, 20.0)),
+    "motion_blur": _Knobs(speed=(8.0, 12.0)),
+    "low_contrast": _Knobs(noise=3.0),
+    "shape_change": _Knobs(shape=(0.25, 0.32), period=(15.0, 30.0)),
+    "scale_change": _Knobs(scale=2.0),
+}
+
+
+def make_sequence(
+    condition: str, *, seed: int = 0, length: int = 40, size: tuple[int, int] = (480, 640)
+) -> SyntheticSequence:
+    """Generate a synthetic tracking sequence.
+
+    Parameters
+    ----------
+    condition : str
+        One of :data:`CONDITIONS`.
+    seed : int
+        Non-negative seed; equal seeds give identical sequences.
+    length : int
+        Number of frames (>= 2).
+    size : tuple of int
+        ``(height, width)`` in pixels, each >= :data:`MIN_SIZE`.
+
+    Returns
+    -------
+    SyntheticSequence
+
+    Raises
+    ------
+    ValueError
+        For an unknown condition, a negative seed, ``length < 2`` or a too small size.
+    """
+    if condition not in CONDITIONS:
+        raise ValueError(
+            f"unknown condition {condition!r}; expected one of {', '.join(CONDITIONS)}"
+        )
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+    if isinstance(length, bool) or not isinstance(length, int | np.integer) or length < 2:
+        raise ValueError(f"length must be an integer >= 2; got {length!r}")
+    try:
+        H, W = (int(v) for v in size)
+    except (TypeError, ValueError):
+        raise ValueError(f"size must be (height, width); got {size!r}") from None
+    if min(H, W) < MIN_SIZE:
+        raise ValueError(f"size must be at least {MIN_SIZE} x {MIN_SIZE} pixels; got {H} x {W}")
+    rng = np.random.default_rng([int(seed), CONDITIONS.index(condition)])
+    return _render(condition, rng, int(length), H, W)
+
+
+@cache
+def _gauss_table() -> F32:
+    """Standard normal quantiles of 65536 equiprobable bins: fast sensor noise via lookup."""
+    nd = NormalDist()
+    return np.array([nd.inv_cdf((i + 0.5) / 65536) for i in range(65536)], np.float32)
+
+
+def _coverage(poly: F64, H: int, W: int) -> tuple[int, int, F32] | None:
+    """Anti-aliased area coverage of a polygon: ``(y0, x0, alpha)`` over its clipped bbox."""
+    x0, y0 = (max(int(np.floor(v)) - 1, 0) for v in poly.min(axis=0))
+    x1, y1 = min(int(np.ceil(poly[:, 0].max())) + 2, W), min(int(np.ceil(poly[:, 1].max())) + 2, H)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    hi = (poly - (x0, y0) + 0.5) * _SS - 0.5  # supersampled pixel centres
+    pts = np.round(np.clip(hi, -1e5, 1e5) * 16).astype(np.int32).reshape(-1, 1, 2)
+    canvas = np.zeros(((y1 - y0) * _SS, (x1 - x0) * _SS), np.uint8)
+    cv2.fillPoly(canvas, [pts], 255, lineType=cv2.LINE_8, shift=4)
+    alpha = cv2.resize(canvas, (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA)
+    return y0, x0, alpha.astype(np.float32) / np.float32(255.0)
+
+
+def _paint(img: F32, poly: F64, colour: tuple[float, float, float] | F64) -> None:
+    """Composite a flat-coloured anti-aliased polygon onto ``img`` in place."""
+    cov = _coverage(poly, img.shape[0], img.shape[1])
+    if cov is not None:
+        y0, x0, a = cov
+        roi = img[y0 : y0 + a.shape[0], x0 : x0 + a.shape[1]]
+        roi += a[..., None] * (np.asarray(colour, np.float32) - roi)
+
+
+def _blob(rng: np.random.Generator, center: F64, radius: float) -> F64:
+    """A random static blob outline (for clutter)."""
+    t = np.linspace(0.0, 2 * np.pi, 120, endpoint=False)
+    r = radius * (
+        1 + sum(rng.uniform(0, 0.15) * np.cos(k * t + rng.uniform(0, 6.3)) for k in (2, 3))
+    )
+    return np.asarray(np.c_[center[0] + r * np.cos(t), center[1] + r * np.sin(t)], np.float64)
+
+
+def _background(rng: np.random.Generator, H: int, W: int, base: F64, amp: float) -> F32:
+    """Smooth two-colour gradient plus low-frequency blotches and fine grain (amplitude ``amp``)."""
+    a = rng.uniform(0, 2 * np.pi)
+    ys, xs = np.mgrid[0:H, 0:W].astype(np.float32)
+    g = (np.cos(a) * (xs - W / 2) + np.sin(a) * (ys - H / 2)) / np.float32(np.hypot(H, W) / 2)
+    d = rng.normal(size=3) * amp / np.sqrt(3) + amp * 0.8
+    coarse = rng.normal(size=(5, 7)).astype(np.float32)
+    blotch = cv2.resize(coarse, (W, H), interpolation=cv2.INTER_CUBIC)
+    grain = cv2.GaussianBlur(rng.normal(size=(H, W)).astype(np.float32), (0, 0), 0.8)
+    img = base.astype(np.float32) + g[..., None] * d.astype(np.float32)
+    img += (0.5 * amp * blotch + 0.3 * amp * grain)[..., None]
+    return np.asarray(img, np.float32)
+
+
+def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> SyntheticSequence:
+    """Draw the scene's parameters from ``rng``, then render ``T`` frames of ``H`` x ``W``."""
+    knobs = _KNOBS.get(cond, _Knobs())
+    s = min(1.0, min(H, W) / 480)
+    t = np.arange(T, dtype=np.float64)
+
+    # shape: radius R(t) (1 + sum_k a_k(t) cos(k theta + phi_k(t))), rotation rot(t)
+    R0 = rng.uniform(50, 70) * s
+    ks = rng.choice([2, 3, 4, 5], size=int(rng.integers(2, 5)), replace=False)
+    amax = rng.dirichlet(np.ones(len(ks))) * rng.uniform(*knobs.shape)
+    omega = 2 * np.pi / rng.uniform(*knobs.period, size=len(ks))
+    amp = amax[:, None] * (
+        0.5 + 0.5 * np.sin(omega[:, None] * t + rng.uniform(0, 6.3, (len(ks), 1)))
+    )
+    phase = rng.uniform(0, 2 * np.pi, (len(ks), 1)) + rng.uniform(-0.03, 0.03, (len(ks), 1)) * t
+    rot = rng.uniform(0, 2 * np.pi) + rng.choice([-1, 1]) * np.radians(rng.uniform(0.3, 1.5)) * t
+    if knobs.scale != 1.0:
+        f = knobs.scale ** rng.choice([-1.0, 1.0])
+        radius = R0 * f ** (t / (T - 1) - 0.5)
+    else:
+        radius = R0 * (1 + 0.03 * np.sin(2 * np.pi * t / rng.uniform(30, 60) + rng.uniform(0, 6.3)))
+    theta = np.linspace(0.0, 2 * np.pi, _VERTICES, endpoint=False)
+    r = radius[:, None] * (
+        1 + np.einsum("kt,ktv->tv", amp, np.cos(ks[:, None, None] * theta + phase[..., None]))
+    )
+    env = R0 * max(1.03, np.sqrt(knobs.scale)) * (1 + float(amax.sum()))  # >= every r; not T
+
+    # trajectory: smooth heading and speed, reflected at the walls (keeps the speed)
+    blur_pad = 7.0 if cond == "motion_blur" else 0.0
+    lo = _MARGIN + blur_pad + env + 1
+    hi = np.array([W, H], np.float64) - 1 - lo
+    v_lo, v_hi = knobs.speed
+    speed = v_lo + (v_hi - v_lo) * (0.5 + 0.5 * np.sin(t / rng.uniform(3, 8) + rng.uniform(0, 6.3)))
+    head = rng.uniform(0, 2 * np.pi)
+    start = rng.uniform(lo, hi)
+    if cond == "matched_background":  # straddle the matched left half, heading into it
+        head = np.pi + rng.uniform(-0.5, 0.5)
+        start[0] = W / 2 + rng.uniform(-0.2, 0.3) * env
+    heading = head + 0.7 * np.sin(t / rng.uniform(4, 10) + rng.uniform(0, 6.3))
+    steps = speed[:, None] * np.c_[np.cos(heading), np.sin(heading)]
+    raw = start + np.vstack([np.zeros(2), np.cumsum(steps, axis=0)]) - lo
+    span = np.maximum(hi - lo, 1e-9)
+    q = np.mod(raw, 2 * span)
+    path = lo + np.where(q > span, 2 * span - q, q)  # T + 1 points: one past the end for blur
+    center = path[:T]
+    polys = center[:, None, :] + r[..., None] * np.stack(
+        [np.cos(theta + rot[:, None]), np.sin(theta + rot[:, None])], axis=-1
+    )
+
+    # appearance
+    obj_bgr = np.array([55.0, 60.0, 150.0]) + rng.uniform(-8, 8, 3)
+    shade_amp = 8.0
+    bg_base = np.array([175.0, 180.0, 165.0]) + rng.uniform(-10, 10, 3)
+    bg = _background(rng, H, W, bg_base, 20.0)
+    if cond == "low_contrast":
+        bg_base = np.array([125.0, 130.0, 138.0]) + rng.uniform(-10, 10, 3)
+        bg = _background(rng, H, W, bg_base, 3.0)
+        obj_bgr = bg_base + rng.choice([-1.0, 1.0]) * rng.uniform(15, 20)
+        shade_amp = 1.5
+    elif cond == "matched_background":  # same grey as the object: B +8, R -3
+        matched = _background(rng, H, W, obj_bgr + np.array([8.0, 0.0, -3.0]), 3.0)
+        w = np.clip((W / 2 - np.arange(W, dtype=np.float32)) / 8 + 0.5, 0, 1)[None, :, None]
+        bg += w * (matched - bg)
+    elif cond == "clutter":
+        for i in range(int(rng.integers(6, 10))):
+            size = rng.uniform(15, 45) * s
+            if i < 2:  # touching the object's path
+                k = min(int(rng.random() * T), T - 1)
+                u = rng.uniform(0, 2 * np.pi)
+                c = center[k] + (r[k].mean() + 0.5 * size) * np.array([np.cos(u), np.sin(u)])
+            else:
+                c = rng.uniform((0, 0), (W, H))
+            colour = obj_bgr + rng.choice([-1, 1], 3) * rng.uniform(15, 35, 3)
+            if rng.random() < 0.5:
+                colour = rng.uniform(0, 255, 3)
+            if rng.random() < 0.5:
+                _paint(bg, _blob(rng, c, size), colour)
+            else:
+                box = ((c[0], c[1]), (2 * size, size * rng.uniform(0.4, 1.2)), rng.uniform(0, 180))
+                _paint(bg, cv2.boxPoints(box).astype(np.float64), colour)
+    tex_kind = int(rng.integers(2))
+    tex_bgr = np.array([150.0, 215.0, 235.0]) + rng.uniform(-15, 15, 3)
+    tex_period = rng.uniform(16, 28) * s
+    tex_angle = rng.uniform(0, np.pi)
+    shade_k = rng.uniform(0.04, 0.09, (3, 2)) * rng.choice([-1, 1], (3, 2)) / max(s, 0.3)
+    shade_p = rng.uniform(0, 2 * np.pi, 3)
+    occ_angle = rng.uniform(0, np.pi)
+    occ_width = rng.uniform(8, 14)
+    blur = cond == "motion_blur"
+    noise_lut = _gauss_table() * np.float32(knobs.noise)
+
+    frames: list[U8] = []
+    masks: list[U8] = []
+    for i in range(T):
+        img = bg.copy()
+        pad = int(blur_pad) + 2 if blur else 0
+        cov = _coverage(polys[i], H, W)
+        assert cov is not None  # the object is always inside the frame
+        y0, x0, a = cov
+        if pad:
+            a = np.asarray(
+                cv2.copyMakeBorder(a, pad, pad, pad, pad, cv2.BORDER_CONSTANT), np.float32
+            )
+            y0, x0 = y0 - pad, x0 - pad  # still >= 0: the trajectory's margin includes blur_pad
+        h, w_ = a.shape
+        # object colour in object coordinates (rotating and scaling with the object)
+        ys, xs = np.mgrid[y0 : y0 + h, x0 : x0 + w_].astype(np.float64)
+        dx, dy = xs - center[i, 0], ys - center[i, 1]
+        c_, s_ = np.cos(rot[i]), np.sin(rot[i])
+        zoom = R0 / radius[i]
+        ou, ov = (c_ * dx + s_ * dy) * zoom, (-s_ * dx + c_ * dy) * zoom
+        shade = sum(np.sin(shade_k[j, 0] * ou + shade_k[j, 1] * ov + shade_p[j]) for j in range(3))
+        obj = obj_bgr.astype(np.float32) + (shade_amp / 3 * shade)[..., None].astype(np.float32)
+        if cond == "textured":
+            su = np.cos(tex_angle) * ou + np.sin(tex_angle) * ov
+            pat = np.sin(2 * np.pi * su / tex_period)
+            if tex_kind:
+                sv = -np.sin(tex_angle) * ou + np.cos(tex_angle) * ov
+                pat = pat * np.sin(2 * np.pi * sv / tex_period)
+            m = (np.clip(pat * 4, -1, 1) * 0.5 + 0.5)[..., None].astype(np.float32)
+            obj += m * (tex_bgr.astype(np.float32) - obj)
+        if blur:
+            vel = (path[i + 1] - path[max(i - 1, 0)]) / (i + 1 - max(i - 1, 0))
+            n = max(float(np.hypot(*vel)), 1.0)
+            kc = pad
+            line = np.array([kc, kc]) + np.outer([-0.5, 0.5, 0.5, -0.5], vel)
+            line += np.outer([-0.5, -0.5, 0.5, 0.5], (-vel[1] / n, vel[0] / n))
+            kcov = _coverage(line, 2 * kc + 1, 2 * kc + 1)
+            kern = np.zeros((2 * kc + 1, 2 * kc + 1), np.float32)
+            if kcov is not None:
+                ky, kx, ka = kcov
+                kern[ky : ky + ka.shape[0], kx : kx + ka.shape[1]] = ka
+            kern /= kern.sum()
+            premult = cv2.filter2D(a[..., None] * obj, -1, kern, borderType=cv2.BORDER_CONSTANT)
+            a = np.asarray(cv2.filter2D(a, -1, kern, borderType=cv2.BORDER_CONSTANT), np.float32)
+        else:
+            premult = a[..., None] * obj
+        roi = img[y0 : y0 + h, x0 : x0 + w_]
+        roi *= 1 - a[..., None]
+        roi += premult
+        if cond == "occluder":
+            nrm = np.array([np.cos(occ_angle), np.sin(occ_angle)])
+            along = np.array([-nrm[1], nrm[0]])
+            off = (2 * i / (T - 1) - 1) * (env + occ_width + 10)
+            mid = center[i] + off * nrm
+            half_l, half_w = 2 * env + 30, occ_width / 2
+            bar = (
+                mid
+                + np.outer([-1, 1, 1, -1], along * half_l)
+                + np.outer([-1, -1, 1, 1], nrm * half_w)
+            )
+            _paint(img, bar, _OCCLUDER_BGR)
+        img += noise_lut[rng.integers(0, 65536, (H, W, 3), dtype=np.uint16)]
+        np.clip(img, 0, 255, out=img)
+        frame = np.rint(img).astype(np.uint8)
+        mask = contour_to_mask(polys[i], (H, W))
+        frame.flags.writeable = False
+        mask.flags.writeable = False
+        frames.append(frame)
+        masks.append(mask)
+    return SyntheticSequence(cond, tuple(frames), tuple(masks))
