@@ -88,12 +88,23 @@ def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _sample(image: NDArray[np.float32], points: NDArray[np.float64]) -> NDArray[np.float32]:
-    shape = points.shape[:-1]
-    flat = points.reshape(-1, 1, 2).astype(np.float32)
-    values = cv2.remap(
-        image, flat[..., 0], flat[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    )
-    return np.asarray(values, dtype=np.float32).reshape(shape)
+    """Bilinear samples at (N, K, 2) ``[x, y]`` points, as an (N, K) map.
+
+    OpenCV's remap takes maps of at most 32767 rows and columns, so a
+    profile per row keeps any number of nodes and samples within reach.
+    """
+    n, k = points.shape[:2]
+    values = np.empty((n, k), dtype=np.float32)
+    for start in range(0, n, 32767):
+        chunk = points[start : start + 32767].astype(np.float32)
+        values[start : start + 32767] = cv2.remap(
+            image,
+            np.ascontiguousarray(chunk[..., 0]),
+            np.ascontiguousarray(chunk[..., 1]),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+    return values
 
 
 def find_boundary(

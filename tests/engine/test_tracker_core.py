@@ -105,3 +105,12 @@ def test_malformed_state_is_a_value_error() -> None:
     state["options"] = {"search_radius": "far"}
     with pytest.raises(ValueError, match="search_radius"):
         Tracker.from_state(state)
+
+
+def test_many_nodes_are_supported() -> None:
+    # 2000 nodes x 25 samples exceed OpenCV's 32767-point remap limit per axis.
+    tracker = Tracker(circle_nodes((120, 100), 40.0, 2000))
+    tracker.step(scene((120, 100)))
+    result = tracker.step(scene((123, 100)))
+    assert result.nodes.shape == (2000, 2)
+    assert np.isfinite(result.nodes).all()
