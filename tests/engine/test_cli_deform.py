@@ -1,4 +1,4 @@
-"""The ``efdm`` command line: ``efdm deform``."""
+"""``efdm deform``: equilibrium displacements from the command line."""
 
 from __future__ import annotations
 

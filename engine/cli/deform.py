@@ -1,32 +1,20 @@
-"""The ``efdm`` command line.
-
-Exit codes: 0 success, 1 an input or output file could not be read or
-written, 2 invalid arguments or data (the message says what is wrong).
-"""
+"""``efdm deform``: equilibrium displacements of a contour under forces."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.cli._common import EXIT_INVALID, EXIT_IO, CliError
 from engine.deform import METHODS, deform
 
-EXIT_OK, EXIT_IO, EXIT_INVALID = 0, 1, 2
-
-
-class CliError(Exception):
-    """A failure with its exit code and a message for stderr."""
-
-    def __init__(self, message: str, code: int) -> None:
-        super().__init__(message)
-        self.code = code
+__all__ = ["add_parser", "run"]
 
 
 def _read_json(source: str) -> Any:
@@ -40,7 +28,7 @@ def _read_json(source: str) -> Any:
         raise CliError(f"{source} is not valid JSON: {exc}", EXIT_INVALID) from None
 
 
-def _load_deform_input(source: str) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+def _load_input(source: str) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     """Forces and optional rest nodes from a .npy file or a JSON document."""
     if source.endswith(".npy"):
         try:
@@ -60,8 +48,15 @@ def _load_deform_input(source: str) -> tuple[NDArray[np.float64], NDArray[np.flo
     return forces, nodes
 
 
-def _deform(args: argparse.Namespace, out: TextIO) -> None:
-    forces, nodes = _load_deform_input(args.input)
+def run(args: argparse.Namespace, out: TextIO) -> None:
+    """Solve for the forces in ``args.input``; write JSON to ``out`` or ``args.out``.
+
+    Raises
+    ------
+    CliError
+        With :data:`EXIT_IO` or :data:`EXIT_INVALID`.
+    """
+    forces, nodes = _load_input(args.input)
     try:
         U = deform(forces, args.stiffness, closed=not args.open, method=args.method, tol=args.tol)
     except ValueError as exc:
@@ -84,13 +79,8 @@ def _deform(args: argparse.Namespace, out: TextIO) -> None:
         raise CliError(f"cannot write {args.out}: {exc}", EXIT_IO) from None
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``efdm`` (one sub-command per job)."""
-    parser = argparse.ArgumentParser(
-        prog="efdm",
-        description="Explicit physics-based deformable contours (Krinidis & Pitas).",
-    )
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register ``deform`` on the sub-command set of ``efdm``."""
     d = commands.add_parser(
         "deform",
         help="equilibrium displacements of a contour under forces",
@@ -107,20 +97,4 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--method", choices=METHODS, default="exact", help="solver (default: exact)")
     d.add_argument("--tol", type=float, help="EFDMT error bound relative to max|F|")
     d.add_argument("--out", "-o", help="write JSON (or .npy displacements) here, not stdout")
-    d.set_defaults(handler=_deform)
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``efdm``; returns the process exit code."""
-    args = build_parser().parse_args(argv)
-    try:
-        args.handler(args, sys.stdout)
-    except CliError as exc:
-        print(f"efdm {args.command}: error: {exc}", file=sys.stderr)
-        return exc.code
-    return EXIT_OK
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())
+    d.set_defaults(handler=run)
