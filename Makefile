@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest bench bench-solvers clean
+.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -36,10 +36,13 @@ pytest: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 ## bench: every benchmark; results land in bench/results/
-bench: bench-solvers
+bench: bench-solvers bench-tracking
 
 bench-solvers: $(STAMP)
 	$(BIN)/python bench/solvers.py
+
+bench-tracking: $(STAMP)
+	$(BIN)/python bench/tracking.py
 
 clean:
 	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache

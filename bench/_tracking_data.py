@@ -1,0 +1,122 @@
+"""Tracking benchmark data: the DAVIS-2016 subset and the synthetic sequences.
+
+Both give :class:`Clip` objects: frames (H x W x 3 BGR uint8) with one
+ground-truth mask each (H x W uint8, 0 / 255).  ``engine.synthetic`` is
+imported lazily, so the DAVIS part runs while it is missing.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+Frame = NDArray[np.uint8]
+Mask = NDArray[np.uint8]
+
+DAVIS_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "davis2016"
+DAVIS_ORDER = ("blackswan", "car-shadow", "dog", "soapbox", "breakdance")
+"""The order of the DAVIS README's tables; other sequences follow alphabetically."""
+
+
+@dataclass(frozen=True, slots=True)
+class Clip:
+    """One evaluation sequence.
+
+    Attributes
+    ----------
+    name : str
+        Sequence (DAVIS) or condition (synthetic) name.
+    source : str
+        ``"davis"`` or ``"synthetic"``.
+    frames : tuple of numpy.ndarray
+        H x W x 3 BGR uint8 frames.
+    masks : tuple of numpy.ndarray
+        H x W uint8 ground truth, 0 = background, 255 = object.
+    """
+
+    name: str
+    source: str
+    frames: tuple[Frame, ...]
+    masks: tuple[Mask, ...]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Frame height and width."""
+        height, width = self.frames[0].shape[:2]
+        return int(height), int(width)
+
+
+def davis_names(root: Path = DAVIS_ROOT) -> list[str]:
+    """Sequences present under ``root`` (each with ``frames/`` and ``masks/``), README order."""
+    if not root.is_dir():
+        return []
+    found = {p.name for p in root.iterdir() if (p / "frames").is_dir() and (p / "masks").is_dir()}
+    known = [name for name in DAVIS_ORDER if name in found]
+    return known + sorted(found - set(known))
+
+
+def read_image(path: Path, flags: int) -> NDArray[np.uint8]:
+    """``cv2.imread`` that raises instead of returning None."""
+    image = cv2.imread(str(path), flags)
+    if image is None:
+        raise OSError(f"cannot read image {path}")
+    return np.asarray(image, dtype=np.uint8)
+
+
+def load_davis(name: str, limit: int | None = None, root: Path = DAVIS_ROOT) -> Clip:
+    """Frames and masks of one DAVIS sequence, optionally only the first ``limit``.
+
+    Raises
+    ------
+    OSError
+        If a file cannot be read or frames and masks do not pair up.
+    """
+    frame_paths = sorted((root / name / "frames").glob("*.jpg"))[:limit]
+    mask_paths = sorted((root / name / "masks").glob("*.png"))[:limit]
+    if not frame_paths or [p.stem for p in frame_paths] != [p.stem for p in mask_paths]:
+        raise OSError(f"DAVIS sequence {name}: frames and masks do not pair up")
+    frames = tuple(read_image(p, cv2.IMREAD_COLOR) for p in frame_paths)
+    masks = tuple(read_image(p, cv2.IMREAD_GRAYSCALE) for p in mask_paths)
+    return Clip(name, "davis", frames, masks)
+
+
+def synthetic_module() -> Any:
+    """``engine.synthetic``, imported on first use (raises ImportError while it is missing)."""
+    return importlib.import_module("engine.synthetic")
+
+
+def synthetic_conditions() -> tuple[str, ...]:
+    """``engine.synthetic.CONDITIONS``."""
+    return tuple(str(c) for c in synthetic_module().CONDITIONS)
+
+
+def load_synthetic(condition: str, length: int) -> Clip:
+    """One synthetic sequence (seed 0, 480 x 640) as a :class:`Clip`."""
+    sequence = synthetic_module().make_sequence(condition, seed=0, length=length, size=(480, 640))
+    frames = tuple(as_frame(f) for f in sequence.frames)
+    masks = tuple(np.asarray(m, dtype=np.uint8) for m in sequence.masks)
+    if len(frames) != len(masks) or not frames:
+        raise ValueError(f"synthetic {condition}: {len(frames)} frames but {len(masks)} masks")
+    return Clip(condition, "synthetic", frames, masks)
+
+
+def as_frame(frame: Any) -> Frame:
+    """A frame as H x W x 3 BGR uint8 (grey frames are expanded)."""
+    arr = np.asarray(frame, dtype=np.uint8)
+    if arr.ndim == 2:
+        arr = np.asarray(cv2.cvtColor(arr, cv2.COLOR_GRAY2BGR), dtype=np.uint8)
+    return arr
+
+
+def select(available: Sequence[str], wanted: Sequence[str] | None, count: int | None) -> list[str]:
+    """Names to run: ``wanted`` (those available, in order) or else the first ``count``."""
+    if wanted is not None:
+        return [name for name in wanted if name in available]
+    return list(available[:count])

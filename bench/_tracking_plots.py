@@ -1,0 +1,178 @@
+"""Tracking benchmark pictures: the J bar chart and the contact sheets."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from _tracking_data import Clip, Frame
+from _tracking_run import ClipResult, mean_j
+from _tracking_trackers import Nodes
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+DAVIS_GOAL = 0.65
+SYNTHETIC_GOAL = 0.95
+BEST_REFERENCE = ("rigid + snap (README)", 0.581)
+BAR_COLOURS = {"efdm": "tab:red", "static": "tab:grey", "skimage": "tab:blue"}
+SHEET_COLOURS = {"static": (160, 160, 160), "skimage": (255, 140, 0), "efdm": (0, 0, 255)}
+"""BGR colours of the contours on the contact sheets; drawn in this order, efdm on top."""
+LABEL_COLOURS = {"static": (200, 200, 200), "skimage": (255, 170, 60), "efdm": (80, 80, 255)}
+"""BGR colours of the J labels (lighter than the contours, for the dark label box)."""
+COLOUR_NAMES = {"static": "grey", "skimage": "blue", "efdm": "red"}
+GT_COLOUR = (0, 200, 0)
+TILE_WIDTH = 400
+COLUMNS = 3
+
+
+# --------------------------------------------------------------------------- bar chart
+
+
+def draw_bars(
+    ax: Axes, results: Sequence[ClipResult], trackers: Sequence[str], with_mean: bool
+) -> None:
+    """Grouped bars: mean J per clip (and overall mean) for each tracker."""
+    labels = [r.name for r in results] + (["mean"] if with_mean else [])
+    width = 0.8 / max(len(trackers), 1)
+    x = np.arange(len(labels))
+    for k, tracker in enumerate(trackers):
+        values = [r.runs[tracker].mean_j if tracker in r.runs else math.nan for r in results]
+        if with_mean:
+            values.append(mean_j(results, tracker))
+        offset = (k - (len(trackers) - 1) / 2) * width
+        colour = BAR_COLOURS.get(tracker, f"C{k}")
+        ax.bar(x + offset, values, width, label=tracker, color=colour)
+    ax.set_xticks(x, labels, rotation=30, ha="right", fontsize=8)
+    ax.set(ylim=(0.0, 1.22), ylabel="mean J (IoU)")
+    ax.set_yticks(np.linspace(0.0, 1.0, 6))
+    ax.grid(True, axis="y", alpha=0.3)
+
+
+def limited_note(results: Sequence[ClipResult]) -> str:
+    """A title note naming trackers that tracked only part of some clips."""
+    limited = sorted(
+        {
+            f"{t}: first {run.frames} frames"
+            for r in results
+            for t, run in r.runs.items()
+            if run.frames < r.frames
+        }
+    )
+    return f"\n({'; '.join(limited)})" if limited else ""
+
+
+def plot_scores(
+    davis: Sequence[ClipResult],
+    synthetic: Sequence[ClipResult],
+    trackers: Sequence[str],
+    path: Path,
+) -> None:
+    """Mean J per DAVIS sequence and per synthetic condition, with the goal lines."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [(davis, "DAVIS-2016", DAVIS_GOAL), (synthetic, "synthetic", SYNTHETIC_GOAL)]
+    panels = [p for p in panels if p[0]]
+    if not panels:
+        return
+    widths = [len(p[0]) + (1 if p[1].startswith("DAVIS") else 0) for p in panels]
+    fig, axes = plt.subplots(
+        1,
+        len(panels),
+        figsize=(max(8.0, 2.5 + 0.62 * sum(widths)), 4.8),
+        layout="constrained",
+        squeeze=False,
+        gridspec_kw={"width_ratios": widths},
+    )
+    for ax, (results, title, goal) in zip(axes[0], panels, strict=True):
+        draw_bars(ax, results, trackers, with_mean=title.startswith("DAVIS"))
+        ax.axhline(goal, color="black", linestyle="--", linewidth=1, label=f"goal {goal:g}")
+        if title.startswith("DAVIS"):
+            name, value = BEST_REFERENCE
+            ax.axhline(value, color="tab:green", linestyle=":", linewidth=1.5, label=name)
+        ax.set_title(f"{title}: mean J over frames 1..T{limited_note(results)}", fontsize=10)
+        ax.legend(fontsize=7, loc="upper center", ncol=3)
+    fig.suptitle("Contour tracking: mean J per sequence (128 nodes)")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------------- contact sheets
+
+
+def sheet_indices(frames: int, count: int = 6) -> list[int]:
+    """``count`` evenly spaced frame indices from 0 to ``frames - 1`` (no repeats)."""
+    return sorted({int(v) for v in np.linspace(0, frames - 1, count).round()})
+
+
+def draw_polyline(tile: Frame, points: Nodes, colour: tuple[int, int, int], thickness: int) -> None:
+    """A closed polyline at sub-pixel precision (coordinates already in tile pixels)."""
+    if len(points) >= 2 and np.isfinite(points).all():
+        fixed = np.round(np.clip(points, -1e5, 1e5) * 16).astype(np.int32).reshape(-1, 1, 2)
+        cv2.polylines(tile, [fixed], True, colour, thickness, cv2.LINE_AA, shift=4)
+
+
+def put_lines(
+    tile: Frame, lines: Sequence[tuple[str, tuple[int, int, int]]], origin: tuple[int, int]
+) -> None:
+    """Coloured text lines on a dark box, top-left corner at ``origin``."""
+    font, scale, height = cv2.FONT_HERSHEY_SIMPLEX, 0.5, 18
+    width = max(cv2.getTextSize(text, font, scale, 1)[0][0] for text, _ in lines)
+    x, y = origin
+    cv2.rectangle(tile, (x, y), (x + width + 8, y + height * len(lines) + 4), (24, 24, 24), -1)
+    for row, (text, colour) in enumerate(lines):
+        cv2.putText(
+            tile, text, (x + 4, y + height * (row + 1) - 3), font, scale, colour, 1, cv2.LINE_AA
+        )
+
+
+def draw_tile(clip: Clip, result: ClipResult, index: int) -> Frame:
+    """One frame, downscaled, with the ground truth and every tracker's contour."""
+    height, width = clip.shape
+    scale = TILE_WIDTH / width
+    size = (TILE_WIDTH, round(height * scale))
+    resized = cv2.resize(clip.frames[index], size, interpolation=cv2.INTER_AREA)
+    tile = np.ascontiguousarray(resized, dtype=np.uint8)
+    outlines, _ = cv2.findContours(
+        (clip.masks[index] > 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+    )
+    for outline in outlines:
+        draw_polyline(tile, outline.reshape(-1, 2).astype(np.float64) * scale, GT_COLOUR, 2)
+    lines = [(f"frame {index}", (255, 255, 255))]
+    for tracker, colour in SHEET_COLOURS.items():
+        run = result.runs.get(tracker)
+        if run is not None and index < len(run.nodes):
+            draw_polyline(tile, run.nodes[index] * scale, colour, 2 if tracker == "efdm" else 1)
+            lines.append((f"{tracker} J {run.iou[index]:.2f}", LABEL_COLOURS[tracker]))
+    put_lines(tile, lines, (0, 0))
+    return tile
+
+
+def contact_sheet(clip: Clip, result: ClipResult, count: int = 6) -> Frame:
+    """A grid of ``count`` evenly spaced frames with a header naming the colours."""
+    tiles = [draw_tile(clip, result, i) for i in sheet_indices(len(clip.frames), count)]
+    rows = math.ceil(len(tiles) / COLUMNS)
+    blank = np.zeros_like(tiles[0])
+    tiles += [blank] * (rows * COLUMNS - len(tiles))
+    grid = np.vstack([np.hstack(tiles[r * COLUMNS : (r + 1) * COLUMNS]) for r in range(rows)])
+    header = np.full((28, grid.shape[1], 3), 32, dtype=np.uint8)
+    trackers = [t for t in SHEET_COLOURS if t in result.runs]
+    legend = ", ".join(f"{t} {COLOUR_NAMES[t]}" for t in trackers)
+    title = f"{clip.source} {clip.name}: ground truth green, {legend}"
+    put_lines(header, [(title, (255, 255, 255))], (2, 1))
+    return np.vstack([header, grid])
+
+
+def write_sheet(image: NDArray[np.uint8], path: Path) -> None:
+    """Save a contact sheet as JPEG (quality 88)."""
+    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, 88]):
+        raise OSError(f"cannot write {path}")

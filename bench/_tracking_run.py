@@ -1,0 +1,196 @@
+"""Running the trackers over clips: per-frame J and timings.
+
+Protocol (DAVIS-2016, semi-supervised): the first frame's mask gives the
+initial contour (its largest outer contour resampled to :data:`NODES`
+nodes); the tracker then sees only frames.  J of a frame is the IoU of the
+filled tracked contour with the ground-truth mask; a clip's score is the mean
+over frames 1..T.  Only the ``step`` calls are timed; the trackers take turns
+frame by frame.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from _tracking_data import Clip
+from _tracking_trackers import ContourTracker, Factory, Nodes
+from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
+
+NODES = 128
+
+
+@dataclass(frozen=True, slots=True)
+class Config:
+    """What to run.
+
+    Attributes
+    ----------
+    name : str
+        ``"full"`` or ``"quick"``.
+    davis_count, synthetic_count : int or None
+        How many DAVIS sequences / synthetic conditions (None: all).
+    davis_frames : int or None
+        Frames per DAVIS sequence (None: all).
+    synthetic_length : int
+        Frames per synthetic sequence.
+    skimage_davis, skimage_synthetic : int or None
+        Frames the slow skimage baseline tracks per clip (None: all).
+    synthetic_sheets : int
+        Synthetic conditions that get a contact sheet (those where efdm scores lowest).
+    """
+
+    name: str
+    davis_count: int | None
+    davis_frames: int | None
+    synthetic_count: int | None
+    synthetic_length: int
+    skimage_davis: int | None
+    skimage_synthetic: int | None
+    synthetic_sheets: int = 3
+
+
+FULL = Config("full", None, None, None, 40, None, 15)
+QUICK = Config("quick", 2, 15, 3, 12, 5, 5)
+
+
+def log(message: str) -> None:
+    """Progress line on stderr."""
+    print(f"[bench/tracking] {message}", file=sys.stderr, flush=True)
+
+
+@dataclass(slots=True)
+class TrackRun:
+    """One tracker on one clip.
+
+    Attributes
+    ----------
+    tracker : str
+        Tracker name.
+    frames : int
+        Frames of the clip the tracker was asked to track (it may be limited).
+    iou : list of float
+        J of every tracked frame, frame 0 included (J over frames 1.. is the score).
+    ms : list of float
+        Milliseconds of every ``step`` call, frame 0 (initialisation) included.
+    nodes : list of numpy.ndarray
+        The contour of every tracked frame (kept for the contact sheets, not in the JSON).
+    extras : dict of str to list of float
+        Per-frame diagnostics (efdm).
+    error : str or None
+        What went wrong, if the tracker raised; the untracked frames then count J = 0.
+    """
+
+    tracker: str
+    frames: int
+    iou: list[float] = field(default_factory=list)
+    ms: list[float] = field(default_factory=list)
+    nodes: list[Nodes] = field(default_factory=list)
+    extras: dict[str, list[float]] = field(default_factory=dict)
+    error: str | None = None
+
+    @property
+    def scores(self) -> list[float]:
+        """J of frames 1..frames-1; frames never tracked because of an error count 0."""
+        return self.iou[1:] + [0.0] * (self.frames - max(len(self.iou), 1))
+
+    @property
+    def mean_j(self) -> float:
+        """Mean J over frames 1..frames-1 (nan for a one-frame clip)."""
+        scores = self.scores
+        return float(np.mean(scores)) if scores else math.nan
+
+    @property
+    def step_ms(self) -> list[float]:
+        """Milliseconds of the tracking steps proper (frames 1..)."""
+        return self.ms[1:]
+
+    @property
+    def median_ms(self) -> float:
+        """Median milliseconds per frame over frames 1.. (nan if none)."""
+        return statistics.median(self.step_ms) if self.step_ms else math.nan
+
+
+@dataclass(slots=True)
+class ClipResult:
+    """Every tracker on one clip."""
+
+    name: str
+    source: str
+    frames: int
+    shape: tuple[int, int]
+    runs: dict[str, TrackRun]
+
+
+def initial_contour(clip: Clip) -> Nodes:
+    """The first mask's largest outer contour, resampled to :data:`NODES` nodes."""
+    return mask_to_contour(clip.masks[0], NODES)
+
+
+def record_step(tracker: ContourTracker, run: TrackRun, clip: Clip, index: int) -> None:
+    """Time one ``step`` on frame ``index`` and score its contour into ``run``."""
+    frame = clip.frames[index]
+    start = time.perf_counter()
+    step = tracker.step(frame)
+    run.ms.append(1e3 * (time.perf_counter() - start))
+    filled = contour_to_mask(step.nodes, clip.shape)
+    run.iou.append(float(mask_iou(filled, clip.masks[index])))
+    run.nodes.append(step.nodes)
+    for key, value in step.extras.items():
+        run.extras.setdefault(key, []).append(value)
+
+
+def record_failure(run: TrackRun, clip: Clip, exc: Exception) -> None:
+    """Note a tracker's exception in ``run`` (its untracked frames then score 0)."""
+    run.error = f"frame {len(run.iou)}: {type(exc).__name__}: {exc}"
+    log(f"{clip.source} {clip.name} {run.tracker}: FAILED at {run.error}")
+
+
+def run_clip(clip: Clip, factories: Mapping[str, Factory], limits: Mapping[str, int]) -> ClipResult:
+    """Every tracker on one clip, in lockstep; ``limits`` caps the frames of some trackers.
+
+    The trackers take turns frame by frame, so that their timings see the same
+    machine state.  Exceptions raised by a tracker are recorded in
+    :attr:`TrackRun.error` and end that tracker's run on this clip.
+    """
+    total = len(clip.frames)
+    runs = {name: TrackRun(name, min(limits.get(name, total), total)) for name in factories}
+    active: dict[str, ContourTracker] = {}
+    for name, make in factories.items():
+        try:
+            active[name] = make(initial_contour(clip))
+        except Exception as exc:  # a crashing tracker is a result, not a reason to stop
+            record_failure(runs[name], clip, exc)
+    for index in range(total):
+        for name in [n for n in active if index >= runs[n].frames]:
+            del active[name]
+        for name, tracker in list(active.items()):
+            try:
+                record_step(tracker, runs[name], clip, index)
+            except Exception as exc:  # idem
+                record_failure(runs[name], clip, exc)
+                del active[name]
+    for run in runs.values():
+        log(
+            f"{clip.source:>9} {clip.name:<18} {run.tracker:<8} J {run.mean_j:.3f}  "
+            f"median {run.median_ms:8.2f} ms/frame  ({run.frames} frames)"
+        )
+    return ClipResult(clip.name, clip.source, total, clip.shape, runs)
+
+
+def pooled_median_ms(results: Sequence[ClipResult], tracker: str) -> float:
+    """Median milliseconds per frame over every step (frames 1..) of ``tracker``."""
+    samples = [ms for r in results if tracker in r.runs for ms in r.runs[tracker].step_ms]
+    return statistics.median(samples) if samples else math.nan
+
+
+def mean_j(results: Sequence[ClipResult], tracker: str) -> float:
+    """Mean over clips of the per-clip mean J (nan when the tracker ran on none)."""
+    scores = [r.runs[tracker].mean_j for r in results if tracker in r.runs]
+    return float(np.mean(scores)) if scores else math.nan

@@ -1,0 +1,154 @@
+"""The contour trackers compared by the tracking benchmark, behind one interface.
+
+Every tracker is constructed from the initial contour (``(N, 2)`` ``[x, y]``
+nodes) and then fed the frames in order, starting with frame 0; each
+:meth:`ContourTracker.step` returns the contour on that frame.
+
+- ``"efdm"``: ``engine.Tracker`` (imported lazily: the others run without it).
+- ``"static"``: the contour never moves.
+- ``"skimage"``: ``skimage.segmentation.active_contour`` frame by frame,
+  initialised from the previous frame's result, on the grey frame smoothed by
+  ``skimage.filters.gaussian(sigma=2)``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from _tracking_data import Frame
+
+Nodes = NDArray[np.float64]
+
+TRACKERS = ("efdm", "static", "skimage")
+SKIMAGE_PARAMS: dict[str, Any] = {
+    "alpha": 0.01,
+    "beta": 0.1,
+    "gamma": 0.01,
+    "w_edge": 1.0,
+    "w_line": 0.0,
+    "max_num_iter": 50,
+    "boundary_condition": "periodic",
+}
+"""``active_contour`` keyword arguments: the DAVIS README's reference settings."""
+SKIMAGE_SIGMA = 2.0
+EFDM_EXTRAS = ("iterations", "converged", "confidence")
+"""Per-frame diagnostics read from ``engine.Tracker``'s step results when present."""
+
+
+@dataclass(frozen=True, slots=True)
+class Step:
+    """A tracker's answer for one frame.
+
+    Attributes
+    ----------
+    nodes : numpy.ndarray
+        ``(N, 2)`` ``[x, y]`` contour on this frame.
+    extras : dict of str to float
+        Diagnostics (efdm: iterations, converged, confidence).
+    """
+
+    nodes: Nodes
+    extras: dict[str, float] = field(default_factory=dict)
+
+
+class ContourTracker(Protocol):
+    """What the benchmark needs of a tracker."""
+
+    def step(self, frame: Frame) -> Step:
+        """Track into the next frame (the first call sees frame 0)."""
+        ...
+
+
+Factory = Callable[[Nodes], ContourTracker]
+
+
+class StaticTracker:
+    """The contour never moves."""
+
+    def __init__(self, nodes: Nodes) -> None:
+        self._nodes = np.array(nodes, dtype=np.float64)
+
+    def step(self, frame: Frame) -> Step:
+        """Return the initial contour whatever the frame."""
+        return Step(self._nodes)
+
+
+class SkimageTracker:
+    """``skimage.segmentation.active_contour`` run on every frame from the last result."""
+
+    def __init__(self, nodes: Nodes) -> None:
+        from skimage.filters import gaussian
+        from skimage.segmentation import active_contour
+
+        self._gaussian: Callable[..., Any] = gaussian
+        self._active_contour: Callable[..., Any] = active_contour
+        self._nodes = np.array(nodes, dtype=np.float64)
+        self._started = False
+
+    def step(self, frame: Frame) -> Step:
+        """Frame 0: the initial contour; later frames: the snake from the last result."""
+        if not self._started:
+            self._started = True
+            return Step(self._nodes.copy())
+        grey = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        smooth = self._gaussian(grey, sigma=SKIMAGE_SIGMA)
+        snake = self._active_contour(smooth, self._nodes[:, ::-1], **SKIMAGE_PARAMS)
+        self._nodes = np.ascontiguousarray(np.asarray(snake, dtype=np.float64)[:, ::-1])
+        return Step(self._nodes.copy())
+
+
+class EfdmTracker:
+    """Adapter for ``engine.Tracker`` (``step(frame)`` returns ``.nodes`` and diagnostics)."""
+
+    def __init__(self, engine_tracker: Any) -> None:
+        self._tracker = engine_tracker
+
+    def step(self, frame: Frame) -> Step:
+        """One ``engine.Tracker.step``; its nodes and the diagnostics it reports."""
+        result = self._tracker.step(frame)
+        nodes = np.asarray(result.nodes, dtype=np.float64)
+        if nodes.ndim != 2 or nodes.shape[1] != 2:
+            raise ValueError(f"engine.Tracker returned nodes of shape {nodes.shape}")
+        extras = {
+            name: float(getattr(result, name))
+            for name in EFDM_EXTRAS
+            if getattr(result, name, None) is not None
+        }
+        return Step(nodes, extras)
+
+
+def efdm_factory() -> Factory:
+    """A factory for the efdm tracker (raises if ``engine.Tracker`` cannot be imported)."""
+    tracker_class = importlib.import_module("engine").Tracker
+
+    def make(nodes: Nodes) -> ContourTracker:
+        return EfdmTracker(tracker_class(np.array(nodes, dtype=np.float64), closed=True))
+
+    return make
+
+
+def factory(name: str) -> Factory:
+    """The factory of tracker ``name`` (one of :data:`TRACKERS`).
+
+    Raises
+    ------
+    ImportError, AttributeError
+        If the tracker's library is missing (efdm: ``engine.Tracker``).
+    ValueError
+        If ``name`` is unknown.
+    """
+    if name == "efdm":
+        return efdm_factory()
+    if name == "static":
+        return StaticTracker
+    if name == "skimage":
+        importlib.import_module("skimage.segmentation")
+        return SkimageTracker
+    raise ValueError(f"unknown tracker {name!r}; choose from {', '.join(TRACKERS)}")
