@@ -72,3 +72,29 @@ def solve_chain(
         ):
             ok = False
     return ok
+
+
+@nb.njit(cache=True, nogil=True)
+def polyline_crosses(points: NDArray[np.float64], closed: bool) -> bool:
+    """Whether two non-adjacent edges of the polyline through ``points`` cross."""
+    n = points.shape[0]
+    m = n if closed else n - 1
+    for i in range(m):
+        ax, ay = points[i, 0], points[i, 1]
+        bx, by = points[(i + 1) % n, 0], points[(i + 1) % n, 1]
+        dx, dy = bx - ax, by - ay
+        for j in range(i + 2, m):
+            if closed and i == 0 and j == m - 1:
+                continue  # the last edge shares node 0 with the first
+            cx, cy = points[j, 0], points[j, 1]
+            ex, ey = points[(j + 1) % n, 0], points[(j + 1) % n, 1]
+            o1 = dx * (cy - ay) - dy * (cx - ax)
+            o2 = dx * (ey - ay) - dy * (ex - ax)
+            if o1 * o2 >= 0.0:
+                continue
+            fx, fy = ex - cx, ey - cy
+            o3 = fx * (ay - cy) - fy * (ax - cx)
+            o4 = fx * (by - cy) - fy * (bx - cx)
+            if o3 * o4 < 0.0:
+                return True
+    return False

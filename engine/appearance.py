@@ -62,14 +62,22 @@ class AppearanceModel:
     def updated(
         self, frame: NDArray[np.uint8], nodes: NDArray[np.float64], band: int, rate: float
     ) -> AppearanceModel:
-        """Blend in the histograms of a new frame with weight ``rate``."""
-        obj, bg = _histograms(frame, nodes, band)
+        """Blend in the histograms of a new frame with weight ``rate``.
+
+        Only pixels the current model already finds object-like (p > 0.55)
+        teach the object histogram, and only pixels it does not find clearly
+        object-like (p < 0.9) teach the background's: an occluder crossing
+        the contour, or a contour that lags behind the object, does not leak
+        into the wrong histogram.
+        """
+        obj, bg = _histograms(frame, nodes, band, self.table())
         if obj.shape != self.object_hist.shape:
             return AppearanceModel(obj, bg)
-        return AppearanceModel(
-            (1 - rate) * self.object_hist + rate * obj,
-            (1 - rate) * self.background_hist + rate * bg,
-        )
+
+        def blend(old: NDArray[np.float64], new: NDArray[np.float64]) -> NDArray[np.float64]:
+            return old if new.sum() == 0 else (1 - rate) * old + rate * new  # nothing learnt
+
+        return AppearanceModel(blend(self.object_hist, obj), blend(self.background_hist, bg))
 
     def table(self) -> NDArray[np.float32]:
         """p(object | bin), with a weak prior of 0.5 for rarely seen colours."""
@@ -93,8 +101,12 @@ class AppearanceModel:
 
 
 def _histograms(
-    frame: NDArray[np.uint8], nodes: NDArray[np.float64], band: int
+    frame: NDArray[np.uint8],
+    nodes: NDArray[np.float64],
+    band: int,
+    table: NDArray[np.float32] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Object and background histograms; with a ``table``, only agreeing pixels."""
     h, w = frame.shape[:2]
     x0, y0 = np.floor(nodes.min(axis=0)).astype(int) - band - 2
     x1, y1 = np.ceil(nodes.max(axis=0)).astype(int) + band + 3
@@ -108,6 +120,11 @@ def _histograms(
     outer = cv2.dilate(mask, kernel) > 0
     inner = cv2.erode(mask, np.ones((5, 5), np.uint8)) > 0
     bins = quantise(roi)
+    ring = outer & (mask == 0)
+    if table is not None and len(table) == n_bins:
+        p = table[bins]
+        inner &= p > 0.55
+        ring &= p < 0.9
     obj = np.bincount(bins[inner], minlength=n_bins).astype(np.float64)
-    bg = np.bincount(bins[outer & (mask == 0)], minlength=n_bins).astype(np.float64)
+    bg = np.bincount(bins[ring], minlength=n_bins).astype(np.float64)
     return obj / max(obj.sum(), 1.0), bg / max(bg.sum(), 1.0)

@@ -84,32 +84,21 @@ def resample(nodes: Nodes, count: int, *, closed: bool = True) -> Nodes:
 def polygon_area(nodes: Nodes) -> float:
     """Signed area (shoelace); positive when counter-clockwise in x-right, y-up axes."""
     x, y = nodes[:, 0], nodes[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    inner = float(np.dot(x[:-1], y[1:]) - np.dot(y[:-1], x[1:]))
+    return 0.5 * (inner + float(x[-1] * y[0] - y[-1] * x[0]))
 
 
 def self_intersects(nodes: Nodes, *, closed: bool = True) -> bool:
-    """Whether two non-adjacent edges of the polyline cross (O(N^2), vectorised)."""
-    pts = np.vstack([nodes, nodes[:1]]) if closed else nodes
-    a, b = pts[:-1], pts[1:]
-    m = len(a)
-    if m < 4 if closed else m < 3:
+    """Whether two non-adjacent edges of the polyline properly cross.
+
+    O(N^2) pairs in a compiled loop that stops at the first crossing.
+    """
+    from engine._kernels import polyline_crosses
+
+    pts = np.ascontiguousarray(nodes, dtype=np.float64)
+    if len(pts) < (4 if closed else 3):
         return False
-    d = b - a
-
-    def cross(u: Nodes, v: Nodes) -> NDArray[np.float64]:
-        return np.asarray(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0], dtype=np.float64)
-
-    # orientation of the end points of edge j relative to edge i, and vice versa
-    o1 = cross(d[:, None], a[None, :] - a[:, None])
-    o2 = cross(d[:, None], b[None, :] - a[:, None])
-    o3 = cross(d[None, :], a[:, None] - a[None, :])
-    o4 = cross(d[None, :], b[:, None] - a[None, :])
-    hit = (o1 * o2 < 0) & (o3 * o4 < 0)
-    i, j = np.triu_indices(m, k=2)
-    keep = np.ones(len(i), dtype=bool)
-    if closed:
-        keep &= ~((i == 0) & (j == m - 1))  # first and last edges share a node
-    return bool(hit[i[keep], j[keep]].any())
+    return bool(polyline_crosses(pts, closed))
 
 
 def contour_to_mask(nodes: Nodes, shape: tuple[int, ...]) -> NDArray[np.uint8]:

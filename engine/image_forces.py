@@ -77,7 +77,10 @@ def edge_map(grey: NDArray[np.uint8], sigma: float = 1.0) -> NDArray[np.float32]
 
 def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
     """Unit normals of a closed contour pointing out of its interior."""
-    tangent = np.roll(nodes, -1, axis=0) - np.roll(nodes, 1, axis=0)
+    tangent = np.empty_like(nodes)
+    tangent[1:-1] = nodes[2:] - nodes[:-2]
+    tangent[0] = nodes[1] - nodes[-1]
+    tangent[-1] = nodes[0] - nodes[-2]
     length = np.hypot(tangent[:, 0], tangent[:, 1])
     tangent = tangent / np.maximum(length, 1e-9)[:, None]
     normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)

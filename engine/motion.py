@@ -48,18 +48,32 @@ class Motion:
 
 
 def _features(
-    grey: NDArray[np.uint8], nodes: NDArray[np.float64], max_features: int
+    grey: NDArray[np.uint8],
+    nodes: NDArray[np.float64],
+    max_features: int,
+    allowed: NDArray[np.bool_] | None,
 ) -> NDArray[np.float32]:
-    """Corners inside (and just around) the contour, plus every other contour node."""
+    """Corners inside (and just around) the contour, plus every fourth contour node.
+
+    ``allowed`` (same size as ``grey``) restricts corners to object-like
+    pixels, so an occluder's corners cannot steer the object's motion.
+    """
+    x0, y0, x1, y1 = _window(grey.shape, nodes, 8)
+    sub = np.ascontiguousarray(grey[y0:y1, x0:x1])
+    local = nodes - [x0, y0]
     mask = np.asarray(
-        cv2.dilate(contour_to_mask(nodes, grey.shape), np.ones((7, 7), np.uint8)), np.uint8
+        cv2.dilate(contour_to_mask(local, sub.shape), np.ones((7, 7), np.uint8)), np.uint8
     )
+    if allowed is not None:
+        mask[~allowed[y0:y1, x0:x1]] = 0
     corners = cv2.goodFeaturesToTrack(
-        grey, maxCorners=max_features, qualityLevel=0.01, minDistance=5, mask=mask, blockSize=5
+        sub, maxCorners=max_features, qualityLevel=0.01, minDistance=5, mask=mask, blockSize=5
     )
     pts = nodes[::4].astype(np.float32)
     if corners is not None:
-        pts = np.vstack([pts, corners.reshape(-1, 2)])
+        pts = np.vstack(
+            [pts, np.asarray(corners, np.float32).reshape(-1, 2) + np.array([x0, y0], np.float32)]
+        )
     return pts
 
 
@@ -74,6 +88,22 @@ def _window(
     return x0, y0, max(min(int(x1), w), x0 + 1), max(min(int(y1), h), y0 + 1)
 
 
+def _crop_mask(
+    located: tuple[tuple[int, int], NDArray[np.bool_]], box: tuple[int, int, int, int]
+) -> NDArray[np.bool_]:
+    """A located mask cut (and padded with True) to the frame box x0, y0, x1, y1."""
+    (mx, my), mask = located
+    x0, y0, x1, y1 = box
+    out = np.ones((y1 - y0, x1 - x0), dtype=bool)
+    ax0, ay0 = max(x0, mx), max(y0, my)
+    ax1, ay1 = min(x1, mx + mask.shape[1]), min(y1, my + mask.shape[0])
+    if ax1 > ax0 and ay1 > ay0:
+        out[ay0 - y0 : ay1 - y0, ax0 - x0 : ax1 - x0] = mask[
+            ay0 - my : ay1 - my, ax0 - mx : ax1 - mx
+        ]
+    return out
+
+
 def estimate_motion(
     previous: NDArray[np.uint8],
     current: NDArray[np.uint8],
@@ -84,6 +114,7 @@ def estimate_motion(
     levels: int = 3,
     fb_threshold: float = 1.0,
     ransac_threshold: float = 2.0,
+    object_like: tuple[tuple[int, int], NDArray[np.bool_]] | None = None,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
 
@@ -101,6 +132,10 @@ def estimate_motion(
         Largest forward-backward error (pixels) of a kept point.
     ransac_threshold : float
         RANSAC reprojection threshold (pixels).
+    object_like : tuple, optional
+        ``((x, y), mask)``: where in ``previous`` the object's colours are
+        (a boolean mask whose top-left pixel is at ``(x, y)``); corners are
+        sought there only.
 
     Returns
     -------
@@ -112,7 +147,8 @@ def estimate_motion(
     x0, y0, x1, y1 = _window(previous.shape, nodes, window * (1 << levels))
     previous, current = previous[y0:y1, x0:x1], current[y0:y1, x0:x1]
     origin = np.array([x0, y0], dtype=np.float64)
-    pts = _features(previous, nodes - origin, max_features)
+    allowed = None if object_like is None else _crop_mask(object_like, (x0, y0, x1, y1))
+    pts = _features(previous, nodes - origin, max_features, allowed)
     h, w = previous.shape
     inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
     pts = pts[inside]
@@ -120,11 +156,13 @@ def estimate_motion(
         return Motion.identity(len(pts))
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
 
+    size = (window, window)
+
     def flow(
         a: NDArray[np.uint8], b: NDArray[np.uint8], p: NDArray[np.float32]
     ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
         moved, status, _ = cv2.calcOpticalFlowPyrLK(
-            a, b, p, p.copy(), winSize=(window, window), maxLevel=levels, criteria=criteria
+            a, b, p, p.copy(), winSize=size, maxLevel=levels, criteria=criteria
         )
         return np.asarray(moved, np.float32).reshape(-1, 2), np.asarray(status, np.uint8)
 
@@ -183,13 +221,19 @@ def node_flow(
     x0, y0, x1, y1 = _window(previous.shape, nodes, margin)
     a = np.ascontiguousarray(previous[y0:y1, x0:x1])
     b = np.ascontiguousarray(current[y0:y1, x0:x1])
-    if min(a.shape) < 8:
+    if min(a.shape) < 16:
         return np.zeros_like(nodes)
+    # Half resolution is plenty for a flow that the chain smooths anyway.
+    half_a = cv2.resize(a, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    half_b = cv2.resize(b, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
     dis = cv2.DISOpticalFlow.create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
-    flow = np.asarray(dis.calc(a, b, np.zeros((*a.shape, 2), np.float32)), dtype=np.float32)
-    where = (nodes + depth * inward - [x0, y0]).astype(np.float32).reshape(-1, 1, 2)
+    flow = np.asarray(
+        dis.calc(half_a, half_b, np.zeros((*half_a.shape, 2), np.float32)), dtype=np.float32
+    )
+    where = (0.5 * (nodes + depth * inward - [x0, y0])).astype(np.float32).reshape(-1, 1, 2)
     sampled = [
-        cv2.remap(
+        2.0
+        * cv2.remap(
             np.ascontiguousarray(flow[..., k]),
             where[..., 0],
             where[..., 1],

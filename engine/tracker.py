@@ -66,6 +66,10 @@ class TrackerOptions:
     flow_stiffness : float
         ``a`` of the chain that smooths the per-node optical flow added to
         the similarity prediction (0 disables the non-rigid prediction).
+    tie : float
+        Strength in [0, 1] of the spring holding each node to its predicted
+        place during refinement, relative to the rest springs of eq. 13
+        (0: only the chain's stiffness resists the image forces).
     """
 
     stiffness: float = 40.0
@@ -79,6 +83,8 @@ class TrackerOptions:
     learning_rate: float = 0.05
     max_features: int = 80
     flow_stiffness: float = 20.0
+    tie: float = 0.0
+    robust_scale: float = 0.0
 
     def __post_init__(self) -> None:
         as_stiffness(self.stiffness)
@@ -92,10 +98,14 @@ class TrackerOptions:
             "edge_weight",
             "distance_penalty",
             "flow_stiffness",
+            "tie",
+            "robust_scale",
         ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
                 raise ValueError(f"{name} must be a number >= 0; got {value!r}")
+        if not self.tie <= 1.0:
+            raise ValueError(f"tie must be in [0, 1]; got {self.tie!r}")
         if not 0.0 <= self.learning_rate <= 1.0:
             raise ValueError(f"learning_rate must be in [0, 1]; got {self.learning_rate!r}")
 
@@ -182,6 +192,9 @@ class Tracker:
         self._nodes = self._initial(nodes)
         self._previous: NDArray[np.uint8] | None = None
         self._model: AppearanceModel | None = None
+        # p(object) around the contour in the previous frame, 0-255, and its origin
+        self._probability: tuple[tuple[int, int], NDArray[np.uint8]] | None = None
+        self._last_maps: Maps | None = None
         self.frame_index = -1
 
     @staticmethod
@@ -202,6 +215,7 @@ class Tracker:
         self._nodes = self._initial(nodes)
         self._previous = None
         self._model = None
+        self._probability = None
 
     def step(self, frame: NDArray[np.uint8]) -> TrackResult:
         """Track into the next frame.
@@ -231,6 +245,7 @@ class Tracker:
         if self._previous is None or self._previous.shape != grey.shape or self._model is None:
             self._previous = grey
             self._model = AppearanceModel.fit(image, self._nodes, opts.band)
+            self._probability = self._located_probability(image, self._nodes)
             return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
         motion = estimate_motion(self._previous, grey, self._nodes, max_features=opts.max_features)
         predicted = motion.apply(self._nodes)  # a similarity cannot make it cross itself
@@ -239,9 +254,15 @@ class Tracker:
         if opts.flow_stiffness > 0:
             # non-rigid part: the object's own flow at each node, beyond the
             # similarity, smoothed as the equilibrium of the chain (eq. 16)
-            flow = node_flow(self._previous, grey, self._nodes, -outward_normals(self._nodes))
+            inward = -outward_normals(self._nodes)
+            flow = node_flow(self._previous, grey, self._nodes, inward)
             residual = (self._nodes + flow) - predicted
-            bent = predicted + deform(residual, opts.flow_stiffness)
+            # trust the flow only where it was read on object-like pixels, and
+            # smooth it as a normalised equilibrium: deform(w r) / deform(w)
+            w = self._object_weight(self._nodes + 3.0 * inward)
+            num = deform(w[:, None] * residual, opts.flow_stiffness)
+            den = deform(np.repeat(w[:, None], 2, axis=1), opts.flow_stiffness)
+            bent = predicted + num / np.maximum(den, 1e-3)
             if self._valid(bent, grey.shape):
                 predicted = bent
         refined, iterations, converged, contrast = self._refine(image, grey, predicted)
@@ -250,9 +271,39 @@ class Tracker:
             confidence = 0.0
         self._nodes = refined
         self._previous = grey
+        self._probability = self._located_probability(image, refined, self._last_maps)
         if confidence >= 0.5 and opts.learning_rate > 0:
             self._model = self._model.updated(image, refined, opts.band, opts.learning_rate)
         return self._result(iterations, converged, confidence)
+
+    def _located_probability(
+        self, image: NDArray[np.uint8], nodes: NDArray[np.float64], maps: Maps | None = None
+    ) -> tuple[tuple[int, int], NDArray[np.uint8]] | None:
+        """p(object) as 0-255 around ``nodes`` (with its origin), for the next frame.
+
+        Reuses the refinement's ``maps`` (they cover the search band around the
+        prediction, hence the refined contour) instead of computing them again.
+        """
+        if self._model is None:
+            return None
+        if maps is None:
+            origin, box = self._box(image.shape, nodes)
+            x0, y0, x1, y1 = box
+            prob = self._model.probability(image[y0:y1, x0:x1])
+            return origin, np.round(prob * 255.0).astype(np.uint8)
+        return maps.origin, np.round(maps.probability * 255.0).astype(np.uint8)
+
+    def _object_weight(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """p(object) in the previous frame at ``points`` (1 where unknown)."""
+        if self._probability is None:
+            return np.ones(len(points))
+        (x0, y0), prob = self._probability
+        ij = np.round(points - [x0, y0]).astype(int)
+        h, w = prob.shape
+        inside = (ij[:, 0] >= 0) & (ij[:, 0] < w) & (ij[:, 1] >= 0) & (ij[:, 1] < h)
+        out = np.ones(len(points))
+        out[inside] = prob[ij[inside, 1], ij[inside, 0]] / 255.0
+        return out
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
         return TrackResult(self._nodes.copy(), iterations, converged, confidence)
@@ -275,18 +326,25 @@ class Tracker:
             return False
         return not (check_crossing and self_intersects(nodes))
 
-    def _maps(
-        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], nodes: NDArray[np.float64]
-    ) -> Maps:
-        h, w = grey.shape
+    def _box(
+        self, shape: tuple[int, ...], nodes: NDArray[np.float64]
+    ) -> tuple[tuple[int, int], tuple[int, int, int, int]]:
+        """Region of interest: the nodes' box grown by twice the search radius."""
+        h, w = shape[:2]
         margin = 2 * self.options.search_radius + 4
         x0, y0 = np.floor(nodes.min(axis=0)).astype(int) - margin
         x1, y1 = np.ceil(nodes.max(axis=0)).astype(int) + margin
-        x0, y0 = min(max(x0, 0), w - 1), min(max(y0, 0), h - 1)
-        x1, y1 = max(min(x1, w), x0 + 1), max(min(y1, h), y0 + 1)
+        x0, y0 = min(max(int(x0), 0), w - 1), min(max(int(y0), 0), h - 1)
+        x1, y1 = max(min(int(x1), w), x0 + 1), max(min(int(y1), h), y0 + 1)
+        return (x0, y0), (x0, y0, x1, y1)
+
+    def _maps(
+        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], nodes: NDArray[np.float64]
+    ) -> Maps:
+        origin, (x0, y0, x1, y1) = self._box(grey.shape, nodes)
         assert self._model is not None
         return Maps(
-            (int(x0), int(y0)),
+            origin,
             self._model.probability(image[y0:y1, x0:x1]),
             edge_map(grey[y0:y1, x0:x1]),
         )
@@ -297,6 +355,7 @@ class Tracker:
         """Equilibrium of the chain around the predicted shape under image forces."""
         opts = self.options
         maps = self._maps(image, grey, rest)
+        self._last_maps = maps
         x = rest
         converged = False
         it = 0
@@ -314,8 +373,15 @@ class Tracker:
                 distance_penalty=opts.distance_penalty,
             )
             contrast = ev.contrast
-            pull = (ev.strength * ev.offset)[:, None] * normals
-            forces = (x - rest) + pull
+            # Cauchy weight: a pull far beyond what the prediction left to do is
+            # more likely an occluder or clutter than the boundary
+            robust = (
+                1.0 / (1.0 + (ev.offset / opts.robust_scale) ** 2) if opts.robust_scale else 1.0
+            )
+            pull = (robust * ev.strength * ev.offset)[:, None] * normals
+            # fixed point: (tie I + K)(X - X0) = pull, a spring of strength
+            # `tie` holding each node to its predicted place
+            forces = (1.0 - opts.tie) * (x - rest) + pull
             candidate = rest + deform(forces, opts.stiffness)
             if not np.isfinite(candidate).all():
                 break
