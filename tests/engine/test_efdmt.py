@@ -67,4 +67,6 @@ def test_tolerance_is_guaranteed(
     forces = np.random.default_rng(seed).uniform(-1, 1, (n, 2)) * 10.0 ** (seed % 7 - 3)
     U = deform(forces, a, closed=closed, method="efdmt", tol=tol)
     error = np.abs(U - dense_solve(forces, a, closed)).max()
-    assert error <= tol * np.abs(forces).max() + 1e-12 * np.abs(forces).max()
+    # plus rounding of the dense reference, which grows with cond(I + K) ~ 1 + 4a
+    rounding = 1e-14 * (1 + 4 * a)
+    assert error <= (tol + rounding) * np.abs(forces).max()
