@@ -60,7 +60,9 @@ class ChainConstants:
         mu = 0.5 * (s + 1.0)
         lam = 2.0 * a / (s + 1.0)  # = (s - 1)/2 without cancellation for small a
         r = lam / mu
-        log_r = math.log1p(-2.0 / (s + 1.0))  # r = 1 - 2/(s+1)
+        # r = 1 - 2/(s+1): log1p keeps ln r exact when r is close to 1; for
+        # small r (tiny a) take the logarithm directly
+        log_r = math.log1p(-2.0 / (s + 1.0)) if r > 0.5 else math.log(r)
         return cls(a=a, s=s, mu=mu, lam=lam, r=r, log_r=log_r)
 
     def power(self, n: float) -> float:

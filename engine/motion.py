@@ -221,15 +221,22 @@ def node_flow(
     x0, y0, x1, y1 = _window(previous.shape, nodes, margin)
     a = np.ascontiguousarray(previous[y0:y1, x0:x1])
     b = np.ascontiguousarray(current[y0:y1, x0:x1])
-    if min(a.shape) < 16:
+    if min(a.shape) < 2:
         return np.zeros_like(nodes)
-    # Half resolution is plenty for a flow that the chain smooths anyway.
+    # Half resolution is plenty for a flow that the chain smooths anyway.  DIS
+    # needs at least 32 x 32 pixels (smaller or very flat inputs crash it):
+    # pad by replication and crop the flow back.
     half_a = cv2.resize(a, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
     half_b = cv2.resize(b, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    h, w = half_a.shape
+    pad_y, pad_x = max(0, 32 - h), max(0, 32 - w)
+    if pad_y or pad_x:
+        half_a = cv2.copyMakeBorder(half_a, 0, pad_y, 0, pad_x, cv2.BORDER_REPLICATE)
+        half_b = cv2.copyMakeBorder(half_b, 0, pad_y, 0, pad_x, cv2.BORDER_REPLICATE)
     dis = cv2.DISOpticalFlow.create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
     flow = np.asarray(
         dis.calc(half_a, half_b, np.zeros((*half_a.shape, 2), np.float32)), dtype=np.float32
-    )
+    )[:h, :w]
     where = (0.5 * (nodes + depth * inward - [x0, y0])).astype(np.float32).reshape(-1, 1, 2)
     sampled = [
         2.0

@@ -47,8 +47,8 @@ def head_terms(c: ChainConstants, n: int) -> int:
     """How many forces at each end enter the start values exactly to rounding."""
     if c.log_r == -math.inf:
         return 1
-    # r^L / (1 - r) <= _DROP  <=>  L >= ln(_DROP (1 - r)) / ln r
-    needed = math.log(_DROP * (1.0 - c.r)) / c.log_r
+    # r^L / (1 - r) <= _DROP  <=>  L >= ln(_DROP (1 - r)) / ln r, with 1 - r = 2/(s+1)
+    needed = math.log(_DROP * 2.0 / (c.s + 1.0)) / c.log_r
     return int(min(n, max(1.0, math.ceil(needed) + 1)))
 
 

@@ -17,9 +17,9 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 
 from __future__ import annotations
 
-import base64
 import binascii
 import dataclasses
+import math
 import zlib
 from dataclasses import dataclass
 from typing import Any
@@ -28,10 +28,17 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from engine._state_codec import pack_histogram, pack_image, unpack_histogram, unpack_image
 from engine._validation import as_stiffness
 from engine.appearance import AppearanceModel
 from engine.deform import deform
-from engine.geometry import as_nodes, polygon_area, resample, self_intersects
+from engine.geometry import (
+    as_nodes,
+    contour_to_mask,
+    polygon_area,
+    resample,
+    self_intersects,
+)
 from engine.image_forces import Maps, edge_map, find_boundary, outward_normals
 from engine.motion import Motion, estimate_motion, node_flow
 
@@ -39,6 +46,17 @@ __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
 STATE_VERSION = 1
 MIN_SIDE = 16  # frames smaller than this carry no trackable information
+
+
+_INTEGER_BOUNDS = {"search_radius": 256, "iterations": 100, "band": 256, "max_features": 1000}
+_NUMBER_BOUNDS: dict[str, float] = {
+    "tolerance": math.inf,
+    "region_weight": math.inf,
+    "edge_weight": math.inf,
+    "distance_penalty": math.inf,
+    "flow_stiffness": 1e6,
+    "learning_rate": 1.0,
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,26 +68,26 @@ class TrackerOptions:
     stiffness : float
         ``a = k/m`` of the chain that regularises the image forces.
     search_radius : int
-        How far (pixels) each node looks for the boundary on the first iteration.
+        How far (pixels, 1-256) each node looks for the boundary on the
+        first iteration; later iterations look less far.
     iterations : int
-        Most refinement iterations per frame.
+        Most refinement iterations per frame (1-100).
     tolerance : float
         Converged when no node moved more than this (pixels) in an iteration.
     region_weight, edge_weight, distance_penalty : float
         Cue weights of :func:`engine.image_forces.find_boundary`.
     band : int
-        Width (pixels) of the background ring of the colour model.
+        Width (pixels, 1-256) of the background ring of the colour model.
     learning_rate : float
-        Share of each confident frame blended into the colour model.
+        Share in [0, 1] of each confident frame blended into the colour model.
     max_features : int
-        Corners tracked inside the object for the motion prediction.
+        Corners tracked inside the object for the motion prediction (1-1000).
     flow_stiffness : float
         ``a`` of the chain that smooths the per-node optical flow added to
         the similarity prediction (0 disables the non-rigid prediction).
-    tie : float
-        Strength in [0, 1] of the spring holding each node to its predicted
-        place during refinement, relative to the rest springs of eq. 13
-        (0: only the chain's stiffness resists the image forces).
+    occlusion : bool
+        Treat pixels that were the object's and now look like background,
+        inside the rigidly moved silhouette, as covered by an occluder.
     """
 
     stiffness: float = 40.0
@@ -83,31 +101,21 @@ class TrackerOptions:
     learning_rate: float = 0.05
     max_features: int = 80
     flow_stiffness: float = 20.0
-    tie: float = 0.0
-    robust_scale: float = 0.0
+    occlusion: bool = True
 
     def __post_init__(self) -> None:
         as_stiffness(self.stiffness)
-        for name in ("search_radius", "iterations", "band", "max_features"):
+        for name, top in _INTEGER_BOUNDS.items():
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1; got {value!r}")
-        for name in (
-            "tolerance",
-            "region_weight",
-            "edge_weight",
-            "distance_penalty",
-            "flow_stiffness",
-            "tie",
-            "robust_scale",
-        ):
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
+                raise ValueError(f"{name} must be an integer in [1, {top}]; got {value!r}")
+        for name, limit in _NUMBER_BOUNDS.items():
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not value >= 0:
-                raise ValueError(f"{name} must be a number >= 0; got {value!r}")
-        if not self.tie <= 1.0:
-            raise ValueError(f"tie must be in [0, 1]; got {self.tie!r}")
-        if not 0.0 <= self.learning_rate <= 1.0:
-            raise ValueError(f"learning_rate must be in [0, 1]; got {self.learning_rate!r}")
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not ok or not math.isfinite(value) or not 0 <= value <= limit:
+                raise ValueError(f"{name} must be a finite number in [0, {limit:g}]; got {value!r}")
+        if not isinstance(self.occlusion, bool):
+            raise ValueError(f"occlusion must be true or false; got {self.occlusion!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -251,6 +259,7 @@ class Tracker:
         predicted = motion.apply(self._nodes)  # a similarity cannot make it cross itself
         if not self._valid(predicted, grey.shape, check_crossing=False):
             predicted, motion = self._nodes, Motion.identity()
+        rigid = predicted
         if opts.flow_stiffness > 0:
             # non-rigid part: the object's own flow at each node, beyond the
             # similarity, smoothed as the equilibrium of the chain (eq. 16)
@@ -265,7 +274,9 @@ class Tracker:
             bent = predicted + num / np.maximum(den, 1e-3)
             if self._valid(bent, grey.shape):
                 predicted = bent
-        refined, iterations, converged, contrast = self._refine(image, grey, predicted)
+        # the silhouette moved rigidly with the object: where it used to be
+        silhouette = (motion.matrix, rigid) if opts.occlusion else None
+        refined, iterations, converged, contrast = self._refine(image, grey, predicted, silhouette)
         confidence = float(np.clip(0.4 * motion.inlier_ratio + 0.6 * contrast, 0.0, 1.0))
         if not self._visible(grey):
             confidence = 0.0
@@ -349,13 +360,64 @@ class Tracker:
             edge_map(grey[y0:y1, x0:x1]),
         )
 
+    def _unoccluded(
+        self, maps: Maps, silhouette: tuple[NDArray[np.float64], NDArray[np.float64]]
+    ) -> Maps:
+        """Colour evidence with occluders made neutral (p = 0.5).
+
+        A pixel inside the predicted silhouette whose object-attached place in
+        the previous frame (found through the object's similarity motion) was
+        object-like, but which now looks like background, is most likely
+        covered by something passing in front: it should neither pull the
+        contour in nor count as the object's edge.
+        """
+        if self._probability is None:
+            return maps
+        motion, rest = silhouette
+        (px, py), previous = self._probability
+        ox, oy = maps.origin
+        h, w = maps.probability.shape
+        # current ROI pixel (u, v) -> frame (u + ox, v + oy) -> previous frame via
+        # the inverse motion -> previous ROI (subtract (px, py))
+        a = np.vstack([motion, [0.0, 0.0, 1.0]])
+        inverse = np.linalg.inv(a)
+        shift = np.array([[1.0, 0.0, ox], [0.0, 1.0, oy], [0.0, 0.0, 1.0]])
+        back = np.array([[1.0, 0.0, -px], [0.0, 1.0, -py], [0.0, 0.0, 1.0]])
+        m = (back @ inverse @ shift)[:2]
+        was = cv2.warpAffine(
+            previous,
+            m,
+            (w, h),
+            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=128,
+        )
+        near = np.ones((7, 7), np.uint8)  # three pixels of slack at the rim
+        inside = cv2.dilate(contour_to_mask(rest - [ox, oy], (h, w)), near) > 0
+        covered = inside & (was > 166) & (maps.probability < 0.35)
+        if not covered.any():
+            return maps
+        prob = maps.probability.copy()
+        prob[covered] = 0.5
+        # what the next frame remembers: the object goes on under the occluder
+        memory = maps.probability.copy()
+        memory[covered] = was[covered] / 255.0
+        self._last_maps = Maps(maps.origin, memory, maps.edges)
+        return Maps(maps.origin, prob, maps.edges)
+
     def _refine(
-        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], rest: NDArray[np.float64]
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        rest: NDArray[np.float64],
+        silhouette: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     ) -> tuple[NDArray[np.float64], int, bool, float]:
         """Equilibrium of the chain around the predicted shape under image forces."""
         opts = self.options
         maps = self._maps(image, grey, rest)
         self._last_maps = maps
+        if silhouette is not None:
+            maps = self._unoccluded(maps, silhouette)
         x = rest
         converged = False
         it = 0
@@ -373,15 +435,10 @@ class Tracker:
                 distance_penalty=opts.distance_penalty,
             )
             contrast = ev.contrast
-            # Cauchy weight: a pull far beyond what the prediction left to do is
-            # more likely an occluder or clutter than the boundary
-            robust = (
-                1.0 / (1.0 + (ev.offset / opts.robust_scale) ** 2) if opts.robust_scale else 1.0
-            )
-            pull = (robust * ev.strength * ev.offset)[:, None] * normals
-            # fixed point: (tie I + K)(X - X0) = pull, a spring of strength
-            # `tie` holding each node to its predicted place
-            forces = (1.0 - opts.tie) * (x - rest) + pull
+            pull = (ev.strength * ev.offset)[:, None] * normals
+            # fixed point: K (X - X0) = pull, the chain bends away from the
+            # predicted shape only as far as the image forces pay for it
+            forces = (x - rest) + pull
             candidate = rest + deform(forces, opts.stiffness)
             if not np.isfinite(candidate).all():
                 break
@@ -404,8 +461,10 @@ class Tracker:
         Parameters
         ----------
         include_frame : bool
-            Keep the previous grey frame (PNG, base64) so motion prediction
-            continues seamlessly; without it the next frame re-initialises.
+            Keep the previous grey frame, the colour model and the object
+            probability around the contour (PNG and compressed histograms,
+            base64; tens of kB) so tracking continues exactly as if
+            uninterrupted; without them the next frame re-initialises.
         """
         state: dict[str, Any] = {
             "version": STATE_VERSION,
@@ -414,15 +473,17 @@ class Tracker:
             "frame_index": self.frame_index,
             "model": None,
             "previous": None,
+            "probability": None,
         }
         if self._model is not None and self._previous is not None and include_frame:
             state["model"] = {
-                "object": _pack(self._model.object_hist),
-                "background": _pack(self._model.background_hist),
+                "object": pack_histogram(self._model.object_hist),
+                "background": pack_histogram(self._model.background_hist),
             }
-            ok, png = cv2.imencode(".png", self._previous)
-            if ok:
-                state["previous"] = base64.b64encode(png.tobytes()).decode("ascii")
+            state["previous"] = pack_image(self._previous)
+            if self._probability is not None:
+                origin, prob = self._probability
+                state["probability"] = {"origin": list(origin), "png": pack_image(prob)}
         return state
 
     @classmethod
@@ -442,27 +503,16 @@ class Tracker:
             tracker.frame_index = int(state["frame_index"])
             model, previous = state.get("model"), state.get("previous")
             if model is not None and previous is not None:
-                png = np.frombuffer(base64.b64decode(previous, validate=True), np.uint8)
-                grey = cv2.imdecode(png, cv2.IMREAD_GRAYSCALE)
-                if grey is None:
-                    raise ValueError("previous frame does not decode")
-                tracker._previous = np.asarray(grey, dtype=np.uint8)
-                tracker._model = AppearanceModel(
-                    _unpack(model["object"]), _unpack(model["background"])
-                )
+                obj = unpack_histogram(model["object"])
+                bg = unpack_histogram(model["background"])
+                if obj.shape != bg.shape:
+                    raise ValueError("object and background histograms differ in size")
+                tracker._previous = unpack_image(previous)
+                tracker._model = AppearanceModel(obj, bg)
+                located = state.get("probability")
+                if located is not None:
+                    x, y = (int(v) for v in located["origin"])
+                    tracker._probability = ((x, y), unpack_image(located["png"]))
         except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
             raise ValueError(f"malformed tracker state: {exc}") from None
         return tracker
-
-
-def _pack(values: NDArray[np.float64]) -> str:
-    """Histogram as base64 of zlib-compressed little-endian float64 (exact, compact)."""
-    return base64.b64encode(zlib.compress(values.astype("<f8").tobytes())).decode("ascii")
-
-
-def _unpack(text: str) -> NDArray[np.float64]:
-    raw = zlib.decompress(base64.b64decode(text, validate=True))
-    values = np.frombuffer(raw, dtype="<f8").astype(np.float64)
-    if not np.isfinite(values).all() or (values < 0).any():
-        raise ValueError("histogram values must be finite and >= 0")
-    return values
