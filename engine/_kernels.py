@@ -98,3 +98,24 @@ def polyline_crosses(points: NDArray[np.float64], closed: bool) -> bool:
             if o3 * o4 < 0.0:
                 return True
     return False
+
+
+@nb.njit(cache=True, nogil=True)
+def colour_bins(image: NDArray[np.uint8], grey_bits: int, colour_bits: int) -> NDArray[np.uint16]:
+    """Histogram bin of every pixel in one pass (see engine.appearance.quantise)."""
+    h, w = image.shape[0], image.shape[1]
+    out = np.empty((h, w), dtype=np.uint16)
+    if image.ndim == 2:
+        shift = 8 - grey_bits
+        for i in range(h):
+            for j in range(w):
+                out[i, j] = image[i, j] >> shift
+    else:
+        shift = 8 - colour_bits
+        for i in range(h):
+            for j in range(w):
+                b = image[i, j, 0] >> shift
+                g = image[i, j, 1] >> shift
+                r = image[i, j, 2] >> shift
+                out[i, j] = (np.uint16(b) << (2 * colour_bits)) | (np.uint16(g) << colour_bits) | r
+    return out

@@ -21,16 +21,12 @@ _COLOUR_BITS = 4  # 16 levels per channel: 4096 colour bins
 _GREY_BITS = 5  # 32 grey levels
 
 
-def quantise(image: NDArray[np.uint8]) -> NDArray[np.intp]:
-    """Histogram bin of every pixel (BGR: 16^3 bins; grey: 32 bins)."""
-    if image.ndim == 2:
-        return (image >> (8 - _GREY_BITS)).astype(np.intp)
-    shift = 8 - _COLOUR_BITS
-    q = (image >> shift).astype(np.intp)
-    return np.asarray(
-        (q[..., 0] << (2 * _COLOUR_BITS)) | (q[..., 1] << _COLOUR_BITS) | q[..., 2],
-        dtype=np.intp,
-    )
+def quantise(image: NDArray[np.uint8]) -> NDArray[np.uint16]:
+    """Histogram bin of every pixel (BGR: 16^3 bins; grey: 32 bins), one compiled pass."""
+    from engine._kernels import colour_bins
+
+    bins: NDArray[np.uint16] = colour_bins(np.ascontiguousarray(image), _GREY_BITS, _COLOUR_BITS)
+    return bins
 
 
 def bin_count(image: NDArray[np.uint8]) -> int:
@@ -116,7 +112,8 @@ def _histograms(
         return np.zeros(n_bins), np.zeros(n_bins)
     roi = frame[y0:y1, x0:x1]
     mask = contour_to_mask(nodes - [x0, y0], roi.shape)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * band + 1, 2 * band + 1))
+    # a square ring: dilation by a rectangle is separable, hence cheap
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * band + 1, 2 * band + 1))
     outer = cv2.dilate(mask, kernel) > 0
     inner = cv2.erode(mask, np.ones((5, 5), np.uint8)) > 0
     bins = quantise(roi)

@@ -56,21 +56,20 @@ class BoundaryEvidence:
 
 
 def edge_map(grey: NDArray[np.uint8], sigma: float = 1.0) -> NDArray[np.float32]:
-    """Gradient magnitude of the smoothed image, divided by a robust scale."""
-    smooth = cv2.GaussianBlur(grey, (0, 0), sigma) if sigma > 0 else grey
+    """Gradient magnitude of the smoothed image, divided by a robust scale.
+
+    Computed in float32 from a contiguous copy: OpenCV's optimised 8-bit
+    paths can differ in the last bit with the memory alignment of a crop,
+    and tracking should be exactly repeatable.
+    """
+    image = np.ascontiguousarray(grey, dtype=np.float32)
+    smooth = cv2.GaussianBlur(image, (0, 0), sigma) if sigma > 0 else image
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
-    mag = cv2.magnitude(gx, gy)
-    sample = mag[::3, ::3]
-    scale = (
-        float(
-            np.partition(sample.ravel(), int(0.95 * (sample.size - 1)))[
-                int(0.95 * (sample.size - 1))
-            ]
-        )
-        if sample.size
-        else 0.0
-    )
+    mag = np.asarray(cv2.magnitude(gx, gy), dtype=np.float32)
+    sample = mag[::3, ::3].ravel()  # a robust 95th percentile, cheaply
+    k = int(0.95 * (sample.size - 1))
+    scale = float(np.partition(sample, k)[k]) if sample.size else 0.0
     scale = max(scale, 32.0)  # about 8 grey levels per pixel: weaker is noise
     return np.asarray(np.minimum(mag / scale, 1.0), dtype=np.float32)
 

@@ -144,7 +144,7 @@ def estimate_motion(
     """
     # Work on the object's surroundings only: the search reaches about
     # window * 2^levels pixels, so crop with that margin.
-    x0, y0, x1, y1 = _window(previous.shape, nodes, window * (1 << levels))
+    x0, y0, x1, y1 = _window(previous.shape, nodes, min(64, window * (1 << levels)))
     previous, current = previous[y0:y1, x0:x1], current[y0:y1, x0:x1]
     origin = np.array([x0, y0], dtype=np.float64)
     allowed = None if object_like is None else _crop_mask(object_like, (x0, y0, x1, y1))

@@ -5,12 +5,14 @@ Per frame (``step``):
 1. predict the object's motion: pyramidal Lucas-Kanade on the contour and on
    corners inside it, forward-backward checked, with a RANSAC similarity fit
    (:mod:`engine.motion`);
-2. refine: each node seeks the boundary along its normal (colour model and
-   edges, :mod:`engine.image_forces`); the pulls are forces on the chain,
-   whose equilibrium around the predicted shape, X = X0 + U with
-   (I + K) U = F (paper eq. 13-16, :func:`engine.deform`), keeps the shape
-   plausible through noise, clutter and occlusion;
+2. refine (:mod:`engine.refinement`): each node seeks the boundary along its
+   normal (colour model and edges, :mod:`engine.image_forces`); the pulls are
+   forces on the chain, whose equilibrium around the predicted shape,
+   X = X0 + U with (I + K) U = F (paper eq. 13-16, :func:`engine.deform`),
+   keeps the shape plausible through noise, clutter and occlusion;
 3. resample by arc length and guard against crossing, collapse and NaN.
+
+The options live in :mod:`engine.tracker_options` (re-exported here).
 
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
@@ -19,7 +21,6 @@ from __future__ import annotations
 
 import binascii
 import dataclasses
-import math
 import zlib
 from dataclasses import dataclass
 from typing import Any
@@ -29,93 +30,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from engine._state_codec import pack_histogram, pack_image, unpack_histogram, unpack_image
-from engine._validation import as_stiffness
 from engine.appearance import AppearanceModel
 from engine.deform import deform
-from engine.geometry import (
-    as_nodes,
-    contour_to_mask,
-    polygon_area,
-    resample,
-    self_intersects,
-)
-from engine.image_forces import Maps, edge_map, find_boundary, outward_normals
+from engine.geometry import as_nodes, resample
+from engine.image_forces import Maps, outward_normals
 from engine.motion import Motion, estimate_motion, node_flow
+from engine.refinement import LocatedProbability, refine, roi_box, valid_contour
+from engine.tracker_options import TrackerOptions
 
 __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
 STATE_VERSION = 1
 MIN_SIDE = 16  # frames smaller than this carry no trackable information
-
-
-_INTEGER_BOUNDS = {"search_radius": 256, "iterations": 100, "band": 256, "max_features": 1000}
-_NUMBER_BOUNDS: dict[str, float] = {
-    "tolerance": math.inf,
-    "region_weight": math.inf,
-    "edge_weight": math.inf,
-    "distance_penalty": math.inf,
-    "flow_stiffness": 1e6,
-    "learning_rate": 1.0,
-}
-
-
-@dataclass(frozen=True, slots=True)
-class TrackerOptions:
-    """Tuning of :class:`Tracker`; the defaults are meant to be good.
-
-    Attributes
-    ----------
-    stiffness : float
-        ``a = k/m`` of the chain that regularises the image forces.
-    search_radius : int
-        How far (pixels, 1-256) each node looks for the boundary on the
-        first iteration; later iterations look less far.
-    iterations : int
-        Most refinement iterations per frame (1-100).
-    tolerance : float
-        Converged when no node moved more than this (pixels) in an iteration.
-    region_weight, edge_weight, distance_penalty : float
-        Cue weights of :func:`engine.image_forces.find_boundary`.
-    band : int
-        Width (pixels, 1-256) of the background ring of the colour model.
-    learning_rate : float
-        Share in [0, 1] of each confident frame blended into the colour model.
-    max_features : int
-        Corners tracked inside the object for the motion prediction (1-1000).
-    flow_stiffness : float
-        ``a`` of the chain that smooths the per-node optical flow added to
-        the similarity prediction (0 disables the non-rigid prediction).
-    occlusion : bool
-        Treat pixels that were the object's and now look like background,
-        inside the rigidly moved silhouette, as covered by an occluder.
-    """
-
-    stiffness: float = 40.0
-    search_radius: int = 12
-    iterations: int = 10
-    tolerance: float = 0.25
-    region_weight: float = 1.0
-    edge_weight: float = 0.5
-    distance_penalty: float = 0.15
-    band: int = 15
-    learning_rate: float = 0.05
-    max_features: int = 80
-    flow_stiffness: float = 20.0
-    occlusion: bool = True
-
-    def __post_init__(self) -> None:
-        as_stiffness(self.stiffness)
-        for name, top in _INTEGER_BOUNDS.items():
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
-                raise ValueError(f"{name} must be an integer in [1, {top}]; got {value!r}")
-        for name, limit in _NUMBER_BOUNDS.items():
-            value = getattr(self, name)
-            ok = isinstance(value, int | float) and not isinstance(value, bool)
-            if not ok or not math.isfinite(value) or not 0 <= value <= limit:
-                raise ValueError(f"{name} must be a finite number in [0, {limit:g}]; got {value!r}")
-        if not isinstance(self.occlusion, bool):
-            raise ValueError(f"occlusion must be true or false; got {self.occlusion!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -201,8 +127,7 @@ class Tracker:
         self._previous: NDArray[np.uint8] | None = None
         self._model: AppearanceModel | None = None
         # p(object) around the contour in the previous frame, 0-255, and its origin
-        self._probability: tuple[tuple[int, int], NDArray[np.uint8]] | None = None
-        self._last_maps: Maps | None = None
+        self._probability: LocatedProbability | None = None
         self.frame_index = -1
 
     @staticmethod
@@ -276,20 +201,30 @@ class Tracker:
                 predicted = bent
         # the silhouette moved rigidly with the object: where it used to be
         silhouette = (motion.matrix, rigid) if opts.occlusion else None
-        refined, iterations, converged, contrast = self._refine(image, grey, predicted, silhouette)
-        confidence = float(np.clip(0.4 * motion.inlier_ratio + 0.6 * contrast, 0.0, 1.0))
+        refinement = refine(
+            image,
+            grey,
+            predicted,
+            model=self._model,
+            options=opts,
+            previous_nodes=self._nodes,
+            previous_probability=self._probability,
+            silhouette=silhouette,
+        )
+        refined = refinement.nodes
+        confidence = float(np.clip(0.4 * motion.inlier_ratio + 0.6 * refinement.contrast, 0.0, 1.0))
         if not self._visible(grey):
             confidence = 0.0
         self._nodes = refined
         self._previous = grey
-        self._probability = self._located_probability(image, refined, self._last_maps)
+        self._probability = self._located_probability(image, refined, refinement.maps)
         if confidence >= 0.5 and opts.learning_rate > 0:
             self._model = self._model.updated(image, refined, opts.band, opts.learning_rate)
-        return self._result(iterations, converged, confidence)
+        return self._result(refinement.iterations, refinement.converged, confidence)
 
     def _located_probability(
         self, image: NDArray[np.uint8], nodes: NDArray[np.float64], maps: Maps | None = None
-    ) -> tuple[tuple[int, int], NDArray[np.uint8]] | None:
+    ) -> LocatedProbability | None:
         """p(object) as 0-255 around ``nodes`` (with its origin), for the next frame.
 
         Reuses the refinement's ``maps`` (they cover the search band around the
@@ -298,7 +233,7 @@ class Tracker:
         if self._model is None:
             return None
         if maps is None:
-            origin, box = self._box(image.shape, nodes)
+            origin, box = roi_box(image.shape, nodes, self.options.search_radius)
             x0, y0, x1, y1 = box
             prob = self._model.probability(image[y0:y1, x0:x1])
             return origin, np.round(prob * 255.0).astype(np.uint8)
@@ -327,131 +262,8 @@ class Tracker:
     def _valid(
         self, nodes: NDArray[np.float64], shape: tuple[int, ...], *, check_crossing: bool = True
     ) -> bool:
-        """Finite, not collapsed, not exploded and (optionally) not self-crossing."""
-        if not np.isfinite(nodes).all():
-            return False
-        area = abs(polygon_area(nodes))
-        ref = abs(polygon_area(self._nodes))
-        extent = float(np.ptp(nodes, axis=0).max())
-        if area < 0.2 * ref or area > 25.0 * ref or extent > 4 * max(shape):
-            return False
-        return not (check_crossing and self_intersects(nodes))
-
-    def _box(
-        self, shape: tuple[int, ...], nodes: NDArray[np.float64]
-    ) -> tuple[tuple[int, int], tuple[int, int, int, int]]:
-        """Region of interest: the nodes' box grown by twice the search radius."""
-        h, w = shape[:2]
-        margin = 2 * self.options.search_radius + 4
-        x0, y0 = np.floor(nodes.min(axis=0)).astype(int) - margin
-        x1, y1 = np.ceil(nodes.max(axis=0)).astype(int) + margin
-        x0, y0 = min(max(int(x0), 0), w - 1), min(max(int(y0), 0), h - 1)
-        x1, y1 = max(min(int(x1), w), x0 + 1), max(min(int(y1), h), y0 + 1)
-        return (x0, y0), (x0, y0, x1, y1)
-
-    def _maps(
-        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], nodes: NDArray[np.float64]
-    ) -> Maps:
-        origin, (x0, y0, x1, y1) = self._box(grey.shape, nodes)
-        assert self._model is not None
-        return Maps(
-            origin,
-            self._model.probability(image[y0:y1, x0:x1]),
-            edge_map(grey[y0:y1, x0:x1]),
-        )
-
-    def _unoccluded(
-        self, maps: Maps, silhouette: tuple[NDArray[np.float64], NDArray[np.float64]]
-    ) -> Maps:
-        """Colour evidence with occluders made neutral (p = 0.5).
-
-        A pixel inside the predicted silhouette whose object-attached place in
-        the previous frame (found through the object's similarity motion) was
-        object-like, but which now looks like background, is most likely
-        covered by something passing in front: it should neither pull the
-        contour in nor count as the object's edge.
-        """
-        if self._probability is None:
-            return maps
-        motion, rest = silhouette
-        (px, py), previous = self._probability
-        ox, oy = maps.origin
-        h, w = maps.probability.shape
-        # current ROI pixel (u, v) -> frame (u + ox, v + oy) -> previous frame via
-        # the inverse motion -> previous ROI (subtract (px, py))
-        a = np.vstack([motion, [0.0, 0.0, 1.0]])
-        inverse = np.linalg.inv(a)
-        shift = np.array([[1.0, 0.0, ox], [0.0, 1.0, oy], [0.0, 0.0, 1.0]])
-        back = np.array([[1.0, 0.0, -px], [0.0, 1.0, -py], [0.0, 0.0, 1.0]])
-        m = (back @ inverse @ shift)[:2]
-        was = cv2.warpAffine(
-            previous,
-            m,
-            (w, h),
-            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=128,
-        )
-        near = np.ones((7, 7), np.uint8)  # three pixels of slack at the rim
-        inside = cv2.dilate(contour_to_mask(rest - [ox, oy], (h, w)), near) > 0
-        covered = inside & (was > 166) & (maps.probability < 0.35)
-        if not covered.any():
-            return maps
-        prob = maps.probability.copy()
-        prob[covered] = 0.5
-        # what the next frame remembers: the object goes on under the occluder
-        memory = maps.probability.copy()
-        memory[covered] = was[covered] / 255.0
-        self._last_maps = Maps(maps.origin, memory, maps.edges)
-        return Maps(maps.origin, prob, maps.edges)
-
-    def _refine(
-        self,
-        image: NDArray[np.uint8],
-        grey: NDArray[np.uint8],
-        rest: NDArray[np.float64],
-        silhouette: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-    ) -> tuple[NDArray[np.float64], int, bool, float]:
-        """Equilibrium of the chain around the predicted shape under image forces."""
-        opts = self.options
-        maps = self._maps(image, grey, rest)
-        self._last_maps = maps
-        if silhouette is not None:
-            maps = self._unoccluded(maps, silhouette)
-        x = rest
-        converged = False
-        it = 0
-        contrast = 0.0
-        for it in range(1, opts.iterations + 1):
-            radius = max(3, round(opts.search_radius * (1.0 - (it - 1) / opts.iterations)))
-            normals = outward_normals(x)
-            ev = find_boundary(
-                maps,
-                x,
-                normals,
-                radius,
-                region_weight=opts.region_weight,
-                edge_weight=opts.edge_weight,
-                distance_penalty=opts.distance_penalty,
-            )
-            contrast = ev.contrast
-            pull = (ev.strength * ev.offset)[:, None] * normals
-            # fixed point: K (X - X0) = pull, the chain bends away from the
-            # predicted shape only as far as the image forces pay for it
-            forces = (x - rest) + pull
-            candidate = rest + deform(forces, opts.stiffness)
-            if not np.isfinite(candidate).all():
-                break
-            moved = float(np.abs(candidate - x).max())
-            x = candidate
-            if moved < opts.tolerance:
-                converged = True
-                break
-        out = resample(x, len(x))
-        if not self._valid(out, grey.shape):
-            out = rest if self._valid(rest, grey.shape, check_crossing=False) else self._nodes
-            contrast = 0.0
-        return out, it, converged, max(contrast, 0.0)
+        """:func:`engine.refinement.valid_contour` against the current contour."""
+        return valid_contour(nodes, shape, self._nodes, check_crossing=check_crossing)
 
     # --- serialisation -------------------------------------------------------------
 

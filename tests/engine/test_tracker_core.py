@@ -114,3 +114,22 @@ def test_many_nodes_are_supported() -> None:
     result = tracker.step(scene((123, 100)))
     assert result.nodes.shape == (2000, 2)
     assert np.isfinite(result.nodes).all()
+
+
+def test_results_do_not_depend_on_frame_memory_alignment() -> None:
+    # The same pixels in differently aligned buffers (as decoders hand them
+    # out) must track identically: REST, WebSocket and library agree exactly.
+    def misaligned(frame: np.ndarray, offset: int) -> np.ndarray:
+        buffer = np.empty(frame.size + 64, np.uint8)
+        view = buffer[offset : offset + frame.size].reshape(frame.shape)
+        view[...] = frame
+        return view
+
+    frames = [scene((100.0 + 5 * k, 120.0 + 2 * k)) for k in range(6)]
+    runs = []
+    for offset in (0, 1, 7):
+        tracker = Tracker(circle_nodes((100, 120), 40.0, 48))
+        runs.append([tracker.step(misaligned(f, offset)).nodes for f in frames])
+    for run in runs[1:]:
+        for a, b in zip(runs[0], run, strict=True):
+            np.testing.assert_array_equal(a, b)
