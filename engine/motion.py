@@ -48,24 +48,15 @@ class Motion:
 
 
 def _features(
-    grey: NDArray[np.uint8],
-    nodes: NDArray[np.float64],
-    max_features: int,
-    allowed: NDArray[np.bool_] | None,
+    grey: NDArray[np.uint8], nodes: NDArray[np.float64], max_features: int
 ) -> NDArray[np.float32]:
-    """Corners inside (and just around) the contour, plus every fourth contour node.
-
-    ``allowed`` (same size as ``grey``) restricts corners to object-like
-    pixels, so an occluder's corners cannot steer the object's motion.
-    """
+    """Corners inside (and just around) the contour, plus every fourth contour node."""
     x0, y0, x1, y1 = _window(grey.shape, nodes, 8)
     sub = np.ascontiguousarray(grey[y0:y1, x0:x1])
     local = nodes - [x0, y0]
     mask = np.asarray(
         cv2.dilate(contour_to_mask(local, sub.shape), np.ones((7, 7), np.uint8)), np.uint8
     )
-    if allowed is not None:
-        mask[~allowed[y0:y1, x0:x1]] = 0
     corners = cv2.goodFeaturesToTrack(
         sub, maxCorners=max_features, qualityLevel=0.01, minDistance=5, mask=mask, blockSize=5
     )
@@ -88,22 +79,6 @@ def _window(
     return x0, y0, max(min(int(x1), w), x0 + 1), max(min(int(y1), h), y0 + 1)
 
 
-def _crop_mask(
-    located: tuple[tuple[int, int], NDArray[np.bool_]], box: tuple[int, int, int, int]
-) -> NDArray[np.bool_]:
-    """A located mask cut (and padded with True) to the frame box x0, y0, x1, y1."""
-    (mx, my), mask = located
-    x0, y0, x1, y1 = box
-    out = np.ones((y1 - y0, x1 - x0), dtype=bool)
-    ax0, ay0 = max(x0, mx), max(y0, my)
-    ax1, ay1 = min(x1, mx + mask.shape[1]), min(y1, my + mask.shape[0])
-    if ax1 > ax0 and ay1 > ay0:
-        out[ay0 - y0 : ay1 - y0, ax0 - x0 : ax1 - x0] = mask[
-            ay0 - my : ay1 - my, ax0 - mx : ax1 - mx
-        ]
-    return out
-
-
 def estimate_motion(
     previous: NDArray[np.uint8],
     current: NDArray[np.uint8],
@@ -114,7 +89,6 @@ def estimate_motion(
     levels: int = 3,
     fb_threshold: float = 1.0,
     ransac_threshold: float = 2.0,
-    object_like: tuple[tuple[int, int], NDArray[np.bool_]] | None = None,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
 
@@ -132,23 +106,18 @@ def estimate_motion(
         Largest forward-backward error (pixels) of a kept point.
     ransac_threshold : float
         RANSAC reprojection threshold (pixels).
-    object_like : tuple, optional
-        ``((x, y), mask)``: where in ``previous`` the object's colours are
-        (a boolean mask whose top-left pixel is at ``(x, y)``); corners are
-        sought there only.
 
     Returns
     -------
     Motion
         Identity with zero support when too few points survive.
     """
-    # Work on the object's surroundings only: the search reaches about
-    # window * 2^levels pixels, so crop with that margin.
+    # Work on the object's surroundings only: 64 pixels of context cover any
+    # plausible motion between frames (the pyramid reaches window * 2^levels).
     x0, y0, x1, y1 = _window(previous.shape, nodes, min(64, window * (1 << levels)))
     previous, current = previous[y0:y1, x0:x1], current[y0:y1, x0:x1]
     origin = np.array([x0, y0], dtype=np.float64)
-    allowed = None if object_like is None else _crop_mask(object_like, (x0, y0, x1, y1))
-    pts = _features(previous, nodes - origin, max_features, allowed)
+    pts = _features(previous, nodes - origin, max_features)
     h, w = previous.shape
     inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
     pts = pts[inside]
@@ -188,16 +157,47 @@ def estimate_motion(
     return Motion(matrix, support, len(pts))
 
 
-def node_flow(
+@dataclass(frozen=True, slots=True)
+class FlowField:
+    """Dense optical flow around a contour, computed at half resolution.
+
+    Attributes
+    ----------
+    origin : tuple of int
+        ``(x, y)`` of the crop's top-left pixel in the frame.
+    flow : numpy.ndarray
+        (h, w, 2) float32 displacement of the half-resolution crop, in
+        half-resolution pixels.
+    """
+
+    origin: tuple[int, int]
+    flow: NDArray[np.float32]
+
+    def at(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Displacement (frame pixels) at ``[x, y]`` frame points, bilinear."""
+        where = (0.5 * (points - self.origin)).astype(np.float32).reshape(-1, 1, 2)
+        sampled = [
+            cv2.remap(
+                np.ascontiguousarray(self.flow[..., k]),
+                where[..., 0],
+                where[..., 1],
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_REPLICATE,
+            ).reshape(-1)
+            for k in (0, 1)
+        ]
+        result = 2.0 * np.stack(sampled, axis=1).astype(np.float64)
+        return np.where(np.isfinite(result), result, 0.0)
+
+
+def dense_flow(
     previous: NDArray[np.uint8],
     current: NDArray[np.uint8],
     nodes: NDArray[np.float64],
-    inward: NDArray[np.float64],
     *,
-    depth: float = 3.0,
     margin: int = 48,
-) -> NDArray[np.float64]:
-    """Dense optical flow (OpenCV DIS) sampled just inside each node.
+) -> FlowField | None:
+    """OpenCV DIS optical flow (ultrafast preset) on the contour's surroundings.
 
     Parameters
     ----------
@@ -205,24 +205,19 @@ def node_flow(
         Grey uint8 frames of equal size.
     nodes : numpy.ndarray
         (N, 2) ``[x, y]`` contour in ``previous``.
-    inward : numpy.ndarray
-        (N, 2) unit vectors into the object; the flow is read ``depth``
-        pixels that way, on the object's side of the boundary.
-    depth : float
-        Sampling depth inside the object (pixels).
     margin : int
-        Context kept around the contour for the flow computation (pixels).
+        Context kept around the contour (pixels).
 
     Returns
     -------
-    numpy.ndarray
-        (N, 2) displacement of each node from ``previous`` to ``current``.
+    FlowField or None
+        None when the crop is empty.
     """
     x0, y0, x1, y1 = _window(previous.shape, nodes, margin)
     a = np.ascontiguousarray(previous[y0:y1, x0:x1])
     b = np.ascontiguousarray(current[y0:y1, x0:x1])
     if min(a.shape) < 2:
-        return np.zeros_like(nodes)
+        return None
     # Half resolution is plenty for a flow that the chain smooths anyway.  DIS
     # needs at least 32 x 32 pixels (smaller or very flat inputs crash it):
     # pad by replication and crop the flow back.
@@ -237,17 +232,39 @@ def node_flow(
     flow = np.asarray(
         dis.calc(half_a, half_b, np.zeros((*half_a.shape, 2), np.float32)), dtype=np.float32
     )[:h, :w]
-    where = (0.5 * (nodes + depth * inward - [x0, y0])).astype(np.float32).reshape(-1, 1, 2)
-    sampled = [
-        2.0
-        * cv2.remap(
-            np.ascontiguousarray(flow[..., k]),
-            where[..., 0],
-            where[..., 1],
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        ).reshape(-1)
-        for k in (0, 1)
-    ]
-    result = np.stack(sampled, axis=1).astype(np.float64)
-    return np.where(np.isfinite(result), result, 0.0)
+    return FlowField((x0, y0), np.ascontiguousarray(flow))
+
+
+def node_flow(
+    previous: NDArray[np.uint8],
+    current: NDArray[np.uint8],
+    nodes: NDArray[np.float64],
+    inward: NDArray[np.float64],
+    *,
+    depth: float = 3.0,
+    margin: int = 48,
+) -> NDArray[np.float64]:
+    """Dense optical flow (:func:`dense_flow`) read ``depth`` pixels inside each node.
+
+    Parameters
+    ----------
+    previous, current : numpy.ndarray
+        Grey uint8 frames of equal size.
+    nodes : numpy.ndarray
+        (N, 2) ``[x, y]`` contour in ``previous``.
+    inward : numpy.ndarray
+        (N, 2) unit vectors into the object.
+    depth : float
+        Sampling depth inside the object (pixels).
+    margin : int
+        Context kept around the contour for the flow computation (pixels).
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 2) displacement of each node from ``previous`` to ``current``.
+    """
+    field = dense_flow(previous, current, nodes, margin=margin)
+    if field is None:
+        return np.zeros_like(nodes)
+    return field.at(nodes + depth * inward)
