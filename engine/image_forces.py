@@ -89,26 +89,6 @@ def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
     return result
 
 
-def _sample(image: NDArray[np.float32], points: NDArray[np.float64]) -> NDArray[np.float32]:
-    """Bilinear samples at (N, K, 2) ``[x, y]`` points, as an (N, K) map.
-
-    OpenCV's remap takes maps of at most 32767 rows and columns, so a
-    profile per row keeps any number of nodes and samples within reach.
-    """
-    n, k = points.shape[:2]
-    values = np.empty((n, k), dtype=np.float32)
-    for start in range(0, n, 32767):
-        chunk = points[start : start + 32767].astype(np.float32)
-        values[start : start + 32767] = cv2.remap(
-            image,
-            np.ascontiguousarray(chunk[..., 0]),
-            np.ascontiguousarray(chunk[..., 1]),
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        )
-    return values
-
-
 def find_boundary(
     maps: Maps,
     nodes: NDArray[np.float64],
@@ -139,26 +119,21 @@ def find_boundary(
     BoundaryEvidence
         Offsets in pixels (positive = outward) and strengths in [0, 1].
     """
-    steps = np.arange(-radius, radius + 1, dtype=np.float64)
-    local = nodes - np.asarray(maps.origin, dtype=np.float64)
-    points = local[:, None, :] + steps[None, :, None] * normals[:, None, :]
-    prob = _sample(maps.probability, points).astype(np.float64)
-    edge = _sample(maps.edges, points).astype(np.float64)
-    # split between sample j and j + 1: object-like before, background-like after
-    q = prob - 0.5
-    before = np.cumsum(q, axis=1)[:, :-1]
-    total = before[:, -1:] + q[:, -1:]
-    region = (2.0 * before - total) / (len(steps) / 2.0)
-    edges = 0.5 * (edge[:, :-1] + edge[:, 1:])
-    position = 0.5 * (steps[:-1] + steps[1:])
-    score = (
-        region_weight * region
-        + edge_weight * edges
-        - distance_penalty * np.abs(position)[None, :] / max(radius, 1)
+    from engine._kernels import boundary_search
+
+    local = np.ascontiguousarray(nodes - np.asarray(maps.origin, dtype=np.float64))
+    offset = np.empty(len(nodes))
+    strength = np.empty(len(nodes))
+    contrast = boundary_search(
+        np.ascontiguousarray(maps.probability, dtype=np.float32),
+        np.ascontiguousarray(maps.edges, dtype=np.float32),
+        local,
+        np.ascontiguousarray(normals, dtype=np.float64),
+        int(radius),
+        float(region_weight),
+        float(edge_weight),
+        float(distance_penalty),
+        offset,
+        strength,
     )
-    best = np.argmax(score, axis=1)
-    rows = np.arange(len(nodes))
-    strength = np.clip(score[rows, best], 0.0, 1.0)
-    inside = prob[:, : radius + 1].mean(axis=1)
-    outside = prob[:, radius:].mean(axis=1)
-    return BoundaryEvidence(position[best], strength, float(np.mean(inside - outside)))
+    return BoundaryEvidence(offset, strength, float(contrast))
