@@ -20,8 +20,10 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 from __future__ import annotations
 
 import binascii
+import contextlib
 import dataclasses
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -65,6 +67,23 @@ class TrackResult:
     iterations: int
     converged: bool
     confidence: float
+
+
+@contextlib.contextmanager
+def _repeatable_opencv() -> Iterator[None]:
+    """OpenCV without its IPP fast paths, for this thread, while tracking.
+
+    Some IPP kernels round differently with memory alignment and thread count,
+    so the same frames could track a little differently from run to run (and
+    between the library and the service).  Costs about 7 % of a frame's time;
+    the setting is thread-local and restored afterwards.
+    """
+    previous = cv2.ipp.useIPP()
+    cv2.ipp.setUseIPP(False)
+    try:
+        yield
+    finally:
+        cv2.ipp.setUseIPP(previous)
 
 
 def _as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
@@ -170,6 +189,10 @@ class Tracker:
         ValueError
             If the frame is not a non-empty uint8 image.
         """
+        with _repeatable_opencv():
+            return self._step(frame)
+
+    def _step(self, frame: NDArray[np.uint8]) -> TrackResult:
         image, grey = _as_frame(frame)
         self.frame_index += 1
         opts = self.options

@@ -133,3 +133,19 @@ def test_results_do_not_depend_on_frame_memory_alignment() -> None:
     for run in runs[1:]:
         for a, b in zip(runs[0], run, strict=True):
             np.testing.assert_array_equal(a, b)
+
+
+def test_results_do_not_depend_on_opencv_threads_and_restore_its_settings() -> None:
+    frames = [scene((100.0 + 5 * k, 120.0 + 2 * k)) for k in range(6)]
+    threads, ipp = cv2.getNumThreads(), cv2.ipp.useIPP()
+    runs = []
+    try:
+        for n in (1, 2):
+            cv2.setNumThreads(n)
+            tracker = Tracker(circle_nodes((100, 120), 40.0, 48))
+            runs.append([tracker.step(f).nodes for f in frames])
+            assert cv2.ipp.useIPP() == ipp  # the tracker's own switch is undone
+    finally:
+        cv2.setNumThreads(threads)
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a, b)
