@@ -90,7 +90,7 @@ def run_davis(
         clip = load_davis(name, config.davis_frames)
         result = run_clip(clip, factories, limits)
         results.append(result)
-        sheets.append(save_sheet(contact_sheet(clip, result), name, out))
+        sheets.append(save_sheet(contact_sheet(clip, result), f"davis_{name}", out))
     return results, sheets, []
 
 
@@ -121,13 +121,18 @@ def run_synthetic(
         )
     chosen = sorted(candidates, key=lambda c: (c[0], c[1]))[: config.synthetic_sheets]
     sheets = [
-        save_sheet(image, name, out) for _, _, image, name in sorted(chosen, key=lambda c: c[1])
+        save_sheet(image, f"synthetic_{name}", out)
+        for _, _, image, name in sorted(chosen, key=lambda c: c[1])
     ]
     return results, sheets, []
 
 
 def save_sheet(image: np.ndarray[Any, Any], name: str, out: Path) -> str:
-    """Write ``tracking_sheet_<name>.jpg`` into ``out``; return the file name."""
+    """Write ``tracking_sheet_<name>.jpg`` into ``out``; return the file name.
+
+    Sheets of DAVIS frames are named ``tracking_sheet_davis_*`` and kept out of
+    git: the data set's terms allow evaluation, not copies in this repository.
+    """
     file_name = f"tracking_sheet_{name}.jpg"
     out.mkdir(parents=True, exist_ok=True)
     write_sheet(image, out / file_name)
