@@ -14,13 +14,9 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
-## run: the main job (until the service lands: the engine on an example contour)
+## run: the main job, the service on its embedded in-memory defaults (127.0.0.1:8000)
 run: $(STAMP)
-	$(BIN)/python -c 'import json, math; n = 8; \
-	  nodes = [[100 + 40 * math.cos(2 * math.pi * i / n), 100 + 40 * math.sin(2 * math.pi * i / n)] for i in range(n)]; \
-	  forces = [[10.0, 0.0] if i == 0 else [0.0, 0.0] for i in range(n)]; \
-	  print(json.dumps({"nodes": nodes, "forces": forces}))' \
-	| $(BIN)/efdm deform - --stiffness 2
+	$(BIN)/efdm serve
 
 ## test: lint, type-check and the whole test suite
 test: lint typecheck pytest

@@ -8,6 +8,9 @@ Sub-commands:
 ``efdm track``
     Follow a contour through a video, a folder of images or a glob pattern;
     one JSON record per frame (:mod:`engine.cli.track`).
+``efdm serve``
+    The HTTP/WebSocket tracking service (:mod:`engine.cli.serve`; imports the
+    web stack only when run).
 
 Exit codes (every sub-command): 0 success; 1 an input or output could not be
 read or written (missing file, unreadable video, empty folder, undecodable
@@ -22,6 +25,7 @@ import sys
 from collections.abc import Sequence
 
 from engine.cli import deform as _deform
+from engine.cli import serve as _serve
 from engine.cli import track as _track
 from engine.cli._common import EXIT_INVALID, EXIT_IO, EXIT_OK, CliError
 
@@ -37,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _deform.add_parser(commands)
     _track.add_parser(commands)
+    _serve.add_parser(commands)
     return parser
 
 

@@ -1,0 +1,95 @@
+"""The FastAPI application: ``create_app(settings)``."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+from collections.abc import AsyncIterator
+from pathlib import Path
+
+import anyio.to_thread
+from anyio import CapacityLimiter
+from fastapi import FastAPI
+from fastapi.responses import FileResponse
+from fastapi.staticfiles import StaticFiles
+
+import engine
+from service import errors
+from service.limits import BodyLimit
+from service.routes import health, sessions, stream
+from service.settings import Settings
+from service.store import MemoryStore, SessionStore
+
+STATIC = Path(__file__).parent / "static"
+log = logging.getLogger("efdm.service")
+
+
+def make_store(settings: Settings) -> SessionStore:
+    """The session store the settings ask for (in memory by default)."""
+    return MemoryStore(max_sessions=settings.max_sessions, ttl=settings.session_ttl_seconds)
+
+
+async def _sweep(store: SessionStore, every: float) -> None:
+    while True:
+        await asyncio.sleep(every)
+        with contextlib.suppress(Exception):
+            await store.sweep()
+
+
+def create_app(settings: Settings | None = None, store: SessionStore | None = None) -> FastAPI:
+    """Build the service.
+
+    Parameters
+    ----------
+    settings : Settings, optional
+        Defaults to the environment (``EFDM_*`` variables).
+    store : SessionStore, optional
+        Defaults to :func:`make_store`.
+    """
+    settings = settings or Settings()
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        app.state.cpu = CapacityLimiter(settings.workers or os.cpu_count() or 1)
+        await anyio.to_thread.run_sync(engine.warm_up)  # compile before the first request
+        sweeper = asyncio.create_task(
+            _sweep(app.state.store, min(60.0, settings.session_ttl_seconds / 4))
+        )
+        try:
+            yield
+        finally:
+            sweeper.cancel()
+            await app.state.store.close()
+
+    app = FastAPI(
+        title="efdm-tracker",
+        version=engine.__version__,
+        summary="Real-time contour tracking with explicit physics-based deformable models",
+        description=(
+            "Sessions hold a deformable contour (Krinidis & Pitas). Send forces for the "
+            "equilibrium contour, or frames (REST or WebSocket) to track an object's boundary. "
+            "Coordinates are [x, y] pixels (x = column, y = row), as in OpenCV."
+        ),
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    app.state.store = store or make_store(settings)
+    app.state.cpu = CapacityLimiter(settings.workers or os.cpu_count() or 1)
+    errors.install(app)
+    app.add_middleware(
+        BodyLimit, json_bytes=settings.max_json_bytes, frame_bytes=settings.max_frame_bytes
+    )
+    app.include_router(sessions.router)
+    app.include_router(stream.router)
+    app.include_router(health.router)
+
+    if STATIC.is_dir():
+        app.mount("/static", StaticFiles(directory=STATIC), name="static")
+
+        @app.get("/", include_in_schema=False)
+        async def demo() -> FileResponse:
+            return FileResponse(STATIC / "index.html")
+
+    return app

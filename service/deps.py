@@ -1,0 +1,36 @@
+"""Shared per-request objects: settings, the store, the CPU worker limiter."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TypeVar
+
+import anyio.to_thread
+from anyio import CapacityLimiter
+from starlette.requests import HTTPConnection
+
+from service.settings import Settings
+from service.store import SessionStore
+
+T = TypeVar("T")
+
+
+def settings_of(conn: HTTPConnection) -> Settings:
+    """The app's settings."""
+    settings: Settings = conn.app.state.settings
+    return settings
+
+
+def store_of(conn: HTTPConnection) -> SessionStore:
+    """The app's session store."""
+    store: SessionStore = conn.app.state.store
+    return store
+
+
+async def compute(conn: HTTPConnection, fn: Callable[[], T]) -> T:
+    """Run CPU work in a worker thread, at most one per core at a time.
+
+    Keeps the event loop (other sessions, pings, WebSockets) responsive.
+    """
+    limiter: CapacityLimiter = conn.app.state.cpu
+    return await anyio.to_thread.run_sync(fn, limiter=limiter)

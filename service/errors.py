@@ -1,0 +1,76 @@
+"""Errors as JSON: ``{"error": {"status": 404, "code": "not_found", "message": ...}}``."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from service import metrics
+
+log = logging.getLogger("efdm.service")
+
+
+class ApiError(Exception):
+    """An error a client caused (or may retry), with its HTTP status."""
+
+    def __init__(self, status: int, code: str, message: str, **headers: str) -> None:
+        super().__init__(message)
+        self.status = status
+        self.code = code
+        self.message = message
+        self.headers = headers
+
+
+def not_found() -> ApiError:
+    """Unknown, expired or someone else's session (indistinguishable on purpose)."""
+    return ApiError(404, "not_found", "no such session (unknown, expired or deleted)")
+
+
+def body(status: int, code: str, message: str, **extra: Any) -> dict[str, Any]:
+    """The JSON body of an error response."""
+    return {"error": {"status": status, "code": code, "message": message, **extra}}
+
+
+def install(app: FastAPI) -> None:
+    """Register the handlers that turn every failure into a JSON error."""
+
+    @app.exception_handler(ApiError)
+    async def api_error(_: Request, exc: ApiError) -> JSONResponse:
+        metrics.ERRORS.labels(kind=exc.code).inc()
+        return JSONResponse(
+            body(exc.status, exc.code, exc.message), status_code=exc.status, headers=exc.headers
+        )
+
+    @app.exception_handler(RequestValidationError)
+    async def invalid(_: Request, exc: RequestValidationError) -> JSONResponse:
+        metrics.ERRORS.labels(kind="invalid").inc()
+        details = [
+            {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))} for e in exc.errors()
+        ]
+        first = details[0] if details else {"loc": [], "msg": "invalid request"}
+        where = ".".join(str(p) for p in first["loc"] if p != "body")
+        message = f"{where}: {first['msg']}" if where else str(first["msg"])
+        return JSONResponse(body(422, "invalid", message, details=details), status_code=422)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def http_error(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+        code = {404: "not_found", 405: "method_not_allowed", 413: "too_large"}.get(
+            exc.status_code, "http_error"
+        )
+        metrics.ERRORS.labels(kind=code).inc()
+        return JSONResponse(
+            body(exc.status_code, code, str(exc.detail)),
+            status_code=exc.status_code,
+            headers=getattr(exc, "headers", None),
+        )
+
+    @app.exception_handler(Exception)
+    async def unexpected(_: Request, exc: Exception) -> JSONResponse:  # pragma: no cover
+        metrics.ERRORS.labels(kind="internal").inc()
+        log.exception("unexpected error", exc_info=exc)
+        return JSONResponse(body(500, "internal", "internal error"), status_code=500)

@@ -1,0 +1,83 @@
+"""Request body limits, enforced before anything reads the body (ASGI middleware)."""
+
+from __future__ import annotations
+
+import json
+
+from starlette.exceptions import HTTPException
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from service import metrics
+from service.errors import body
+
+
+class BodyLimit:
+    """Answer 413 once a body exceeds its limit: frames and JSON have their own.
+
+    Checks ``Content-Length`` up front and counts streamed bytes as they
+    arrive, so a client cannot make the server buffer more than the limit.
+    """
+
+    def __init__(self, app: ASGIApp, *, json_bytes: int, frame_bytes: int) -> None:
+        self.app = app
+        self.json_bytes = json_bytes
+        self.frame_bytes = frame_bytes
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] in ("GET", "HEAD", "DELETE", "OPTIONS"):
+            await self.app(scope, receive, send)
+            return
+        is_frame = scope["path"].endswith("/frames")
+        limit = self.frame_bytes + 64 * 1024 if is_frame else self.json_bytes  # multipart framing
+        headers = dict(scope.get("headers") or [])
+        declared = headers.get(b"content-length")
+        if declared is not None and declared.isdigit() and int(declared) > limit:
+            await _too_large(send, limit)
+            return
+        seen = 0
+        responded = False
+
+        async def counting() -> Message:
+            nonlocal seen
+            message = await receive()
+            if message["type"] == "http.request":
+                seen += len(message.get("body", b""))
+                if seen > limit:
+                    raise _BodyTooLarge(limit)
+            return message
+
+        async def guarded(message: Message) -> None:
+            nonlocal responded
+            if message["type"] == "http.response.start":
+                responded = True
+            await send(message)
+
+        try:
+            await self.app(scope, counting, guarded)
+        except _BodyTooLarge:
+            if not responded:
+                await _too_large(send, limit)
+
+
+class _BodyTooLarge(HTTPException):
+    """Raised inside a body read; FastAPI passes HTTP exceptions through."""
+
+    def __init__(self, limit: int) -> None:
+        super().__init__(413, f"request body exceeds {limit} bytes")
+
+
+async def _too_large(send: Send, limit: int) -> None:
+    metrics.ERRORS.labels(kind="too_large").inc()
+    payload = json.dumps(body(413, "too_large", f"request body exceeds {limit} bytes")).encode()
+    await send(
+        {
+            "type": "http.response.start",
+            "status": 413,
+            "headers": [
+                (b"content-type", b"application/json"),
+                (b"content-length", str(len(payload)).encode()),
+                (b"connection", b"close"),
+            ],
+        }
+    )
+    await send({"type": "http.response.body", "body": payload})

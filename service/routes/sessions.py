@@ -1,0 +1,161 @@
+"""``/v1/sessions``: create, read, delete; forces and frames."""
+
+from __future__ import annotations
+
+import time
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Header, Request, Response, status
+
+from service import metrics
+from service.auth import request_owner
+from service.deps import compute, settings_of, store_of
+from service.errors import ApiError
+from service.images import decode_frame
+from service.schemas import ErrorOut, ForcesIn, ForcesOut, FrameOut, SessionCreate, SessionOut
+from service.sessions import Session
+
+router = APIRouter(prefix="/v1/sessions", tags=["sessions"])
+
+Owner = Annotated[str | None, Depends(request_owner)]
+IfMatch = Annotated[
+    str | None,
+    Header(description="the session version this change expects; 412 when stale"),
+]
+ERRORS: dict[int | str, dict[str, Any]] = {
+    code: {"model": ErrorOut} for code in (400, 401, 404, 412, 413, 415, 422, 429)
+}
+
+
+def check_version(session: Session, if_match: str | None) -> None:
+    """412 when ``If-Match`` names another version than the session's."""
+    if if_match is None:
+        return
+    wanted = if_match.strip().strip('"').removeprefix("W/").strip('"')
+    if wanted != "*" and wanted != str(session.version):
+        raise ApiError(
+            412, "version_mismatch", f"session is at version {session.version}, not {wanted}"
+        )
+
+
+@router.post("", status_code=status.HTTP_201_CREATED, response_model=SessionOut, responses=ERRORS)
+async def create_session(
+    spec: SessionCreate, request: Request, response: Response, owner: Owner
+) -> dict[str, Any]:
+    """Create a session from an initial contour (``nodes`` or ``circle``)."""
+    settings = settings_of(request)
+    session = await compute(request, lambda: Session.create(spec, owner, settings.max_nodes))
+    await store_of(request).add(session)
+    response.headers["Location"] = f"/v1/sessions/{session.id}"
+    response.headers["ETag"] = f'"{session.version}"'
+    return session.describe(settings.session_ttl_seconds)
+
+
+@router.get("/{session_id}", response_model=SessionOut, responses=ERRORS)
+async def get_session(
+    session_id: str, request: Request, response: Response, owner: Owner
+) -> dict[str, Any]:
+    """The session's contour and state."""
+    async with store_of(request).lease(session_id, owner) as session:
+        response.headers["ETag"] = f'"{session.version}"'
+        return session.describe(settings_of(request).session_ttl_seconds)
+
+
+@router.delete("/{session_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
+async def delete_session(session_id: str, request: Request, owner: Owner) -> Response:
+    """Delete the session."""
+    await store_of(request).delete(session_id, owner)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.post("/{session_id}/forces", response_model=ForcesOut, responses=ERRORS)
+async def apply_forces(
+    session_id: str,
+    payload: ForcesIn,
+    request: Request,
+    response: Response,
+    owner: Owner,
+    if_match: IfMatch = None,
+) -> dict[str, Any]:
+    """Equilibrium of the rest shape under one force per node (paper eq. 15-16)."""
+    async with store_of(request).lease(session_id, owner) as session:
+        check_version(session, if_match)
+        U = await compute(request, lambda: session.apply_forces(payload.forces))
+        metrics.FORCES.inc()
+        response.headers["ETag"] = f'"{session.version}"'
+        return {
+            "nodes": session.nodes.tolist(),
+            "displacements": U.tolist(),
+            "version": session.version,
+        }
+
+
+FRAME_BODY = {
+    "requestBody": {
+        "required": True,
+        "description": "one encoded image: raw bytes, or multipart/form-data field 'file'",
+        "content": {
+            "image/jpeg": {"schema": {"type": "string", "format": "binary"}},
+            "image/png": {"schema": {"type": "string", "format": "binary"}},
+            "image/webp": {"schema": {"type": "string", "format": "binary"}},
+            "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
+            "multipart/form-data": {
+                "schema": {
+                    "type": "object",
+                    "properties": {"file": {"type": "string", "format": "binary"}},
+                    "required": ["file"],
+                }
+            },
+        },
+    }
+}
+
+
+async def read_image(request: Request) -> tuple[bytes, str | None]:
+    """The uploaded image's bytes and declared type (raw body or multipart 'file')."""
+    settings = settings_of(request)
+    content_type = request.headers.get("content-type", "")
+    if content_type.startswith("multipart/form-data"):
+        try:
+            form = await request.form(
+                max_files=1, max_fields=8, max_part_size=settings.max_frame_bytes + 1
+            )
+        except ApiError:
+            raise
+        except Exception as exc:  # malformed multipart framing
+            raise ApiError(400, "bad_request", f"malformed multipart body: {exc}") from None
+        upload = form.get("file")
+        if upload is None or isinstance(upload, str):
+            raise ApiError(422, "invalid", "multipart body needs a file field 'file'")
+        data = await upload.read()
+        return data, upload.content_type
+    return await request.body(), content_type or None
+
+
+@router.post(
+    "/{session_id}/frames", response_model=FrameOut, responses=ERRORS, openapi_extra=FRAME_BODY
+)
+async def track_frame(
+    session_id: str, request: Request, response: Response, owner: Owner, if_match: IfMatch = None
+) -> dict[str, Any]:
+    """Track the session's contour into one encoded frame (JPEG, PNG or WebP)."""
+    settings = settings_of(request)
+    start = time.perf_counter()
+    data, media_type = await read_image(request)
+    async with store_of(request).lease(session_id, owner) as session:
+        check_version(session, if_match)
+
+        def work() -> dict[str, Any]:
+            frame = decode_frame(
+                data,
+                media_type,
+                max_bytes=settings.max_frame_bytes,
+                max_pixels=settings.max_frame_pixels,
+            )
+            return session.track(frame)
+
+        result = await compute(request, work)
+        response.headers["ETag"] = f'"{session.version}"'
+    metrics.FRAMES.labels(transport="rest").inc()
+    metrics.FRAME_SECONDS.labels(transport="rest").observe(time.perf_counter() - start)
+    return result

@@ -1,0 +1,217 @@
+"""``WS /v1/sessions/{id}/stream``: frames in, contours out, latest frame wins.
+
+Protocol (JSON text messages from the server carry a ``type``):
+
+- client binary message: one encoded frame (JPEG, PNG or WebP); answered by
+  ``{"type": "frame", ...REST frame result..., "dropped": n}``;
+- client text ``{"forces": [[fx, fy], ...]}``: answered by
+  ``{"type": "forces", "nodes", "displacements", "version"}``;
+- client text ``{"ping": x}``: answered by ``{"type": "pong", "pong": x}``;
+- a message the server cannot use: ``{"type": "error", "error": {...}}``, and
+  the stream goes on.
+
+When frames arrive faster than they are tracked, only the newest waiting
+frame is kept; the others are counted in the next result's ``dropped``.
+Memory per stream is bounded: one waiting frame and a few control messages.
+Fatal problems close the socket with a code and a reason: 4401 missing or
+wrong API key, 4404 unknown or expired session, 1009 message too large,
+1011 unexpected server error.  Coordinates are ``[x, y]`` pixels.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import time
+from collections import deque
+from typing import Any
+
+import anyio
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from pydantic import ValidationError
+
+from service import metrics
+from service.auth import websocket_owner
+from service.deps import compute, settings_of, store_of
+from service.errors import ApiError
+from service.images import decode_frame
+from service.schemas import ForcesIn
+
+router = APIRouter(tags=["stream"])
+
+MAX_PENDING_CONTROL = 16
+
+
+class Inbox:
+    """The stream's waiting work: the newest frame and a short control queue."""
+
+    def __init__(self) -> None:
+        self.frame: bytes | None = None
+        self.dropped = 0
+        self.control: deque[dict[str, Any]] = deque()
+        self.ready = asyncio.Event()
+
+    def put_frame(self, data: bytes) -> None:
+        if self.frame is not None:
+            self.dropped += 1
+            metrics.DROPPED.inc()
+        self.frame = data
+        self.ready.set()
+
+    def put_control(self, message: dict[str, Any]) -> bool:
+        if len(self.control) >= MAX_PENDING_CONTROL:
+            return False
+        self.control.append(message)
+        self.ready.set()
+        return True
+
+
+def error_message(exc: ApiError) -> dict[str, Any]:
+    """An error as a stream message."""
+    metrics.ERRORS.labels(kind=exc.code).inc()
+    return {
+        "type": "error",
+        "error": {"status": exc.status, "code": exc.code, "message": exc.message},
+    }
+
+
+@router.websocket("/v1/sessions/{session_id}/stream")
+async def stream(websocket: WebSocket, session_id: str) -> None:
+    """Track a stream of frames (see the module docstring for the protocol)."""
+    await websocket.accept()
+    try:
+        owner = websocket_owner(websocket)
+        async with store_of(websocket).lease(session_id, owner):
+            pass
+    except ApiError as exc:
+        metrics.ERRORS.labels(kind=exc.code).inc()
+        await websocket.close(code=4000 + exc.status, reason=exc.message[:120])
+        return
+    metrics.WEBSOCKETS.inc()
+    inbox = Inbox()
+    try:
+        async with anyio.create_task_group() as tasks:
+            tasks.start_soon(_work, websocket, session_id, owner, inbox)
+            await _receive(websocket, inbox)
+            tasks.cancel_scope.cancel()
+    except _FatalError as fatal:
+        await _close(websocket, fatal.code, fatal.reason)
+    finally:
+        metrics.WEBSOCKETS.dec()
+
+
+class _FatalError(Exception):
+    def __init__(self, code: int, reason: str) -> None:
+        super().__init__(reason)
+        self.code = code
+        self.reason = reason
+
+
+async def _close(websocket: WebSocket, code: int, reason: str) -> None:
+    with contextlib.suppress(RuntimeError, WebSocketDisconnect):
+        await websocket.close(code=code, reason=reason[:120])
+
+
+async def _receive(websocket: WebSocket, inbox: Inbox) -> None:
+    """Read messages until the client goes away; frames replace older frames."""
+    settings = settings_of(websocket)
+    while True:
+        message = await websocket.receive()
+        if message["type"] == "websocket.disconnect":
+            return
+        data, text = message.get("bytes"), message.get("text")
+        if data is not None:
+            if len(data) > settings.max_frame_bytes:
+                raise _FatalError(1009, f"frame exceeds {settings.max_frame_bytes} bytes")
+            inbox.put_frame(data)
+        elif text is not None:
+            if len(text) > settings.max_json_bytes:
+                raise _FatalError(1009, f"message exceeds {settings.max_json_bytes} bytes")
+            try:
+                parsed = json.loads(text)
+            except ValueError:
+                await websocket.send_json(
+                    error_message(ApiError(400, "bad_request", "text messages must be JSON"))
+                )
+                continue
+            if not isinstance(parsed, dict) or not ({"forces", "ping"} & parsed.keys()):
+                await websocket.send_json(
+                    error_message(
+                        ApiError(422, "invalid", 'expected {"forces": [...]} or {"ping": ...}')
+                    )
+                )
+                continue
+            if not inbox.put_control(parsed):
+                await websocket.send_json(
+                    error_message(ApiError(429, "too_many_messages", "too many pending messages"))
+                )
+
+
+async def _work(websocket: WebSocket, session_id: str, owner: str | None, inbox: Inbox) -> None:
+    """Process waiting control messages in order, then the newest frame."""
+    while True:
+        await inbox.ready.wait()
+        inbox.ready.clear()
+        while inbox.control:
+            await websocket.send_json(
+                await _control(websocket, session_id, owner, inbox.control.popleft())
+            )
+        if inbox.frame is not None:
+            data, dropped = inbox.frame, inbox.dropped
+            inbox.frame, inbox.dropped = None, 0
+            await websocket.send_json(await _frame(websocket, session_id, owner, data, dropped))
+
+
+async def _control(
+    websocket: WebSocket, session_id: str, owner: str | None, message: dict[str, Any]
+) -> dict[str, Any]:
+    if "ping" in message:
+        return {"type": "pong", "pong": message["ping"]}
+    try:
+        payload = ForcesIn.model_validate({"forces": message.get("forces")})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        return error_message(ApiError(422, "invalid", f"{where}: {first['msg']}"))
+    try:
+        async with store_of(websocket).lease(session_id, owner) as session:
+            U = await compute(websocket, lambda: session.apply_forces(payload.forces))
+            metrics.FORCES.inc()
+            return {
+                "type": "forces",
+                "nodes": session.nodes.tolist(),
+                "displacements": U.tolist(),
+                "version": session.version,
+            }
+    except ApiError as exc:
+        if exc.status == 404:
+            raise _FatalError(4404, exc.message) from None
+        return error_message(exc)
+
+
+async def _frame(
+    websocket: WebSocket, session_id: str, owner: str | None, data: bytes, dropped: int
+) -> dict[str, Any]:
+    settings = settings_of(websocket)
+    start = time.perf_counter()
+    try:
+        async with store_of(websocket).lease(session_id, owner) as session:
+
+            def work() -> dict[str, Any]:
+                frame = decode_frame(
+                    data,
+                    None,
+                    max_bytes=settings.max_frame_bytes,
+                    max_pixels=settings.max_frame_pixels,
+                )
+                return session.track(frame)
+
+            result = await compute(websocket, work)
+    except ApiError as exc:
+        if exc.status == 404:
+            raise _FatalError(4404, exc.message) from None
+        return {**error_message(exc), "dropped": dropped}
+    metrics.FRAMES.labels(transport="websocket").inc()
+    metrics.FRAME_SECONDS.labels(transport="websocket").observe(time.perf_counter() - start)
+    return {"type": "frame", **result, "dropped": dropped}

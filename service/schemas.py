@@ -1,0 +1,111 @@
+"""Request and response bodies of the v1 API.
+
+Coordinates are ``[x, y]`` pixels everywhere (x = column, y = row), as in
+OpenCV; nodes and forces are lists of such pairs.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from engine.deform import METHODS
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Point = Annotated[tuple[Finite, Finite], Field(description="[x, y] pixels")]
+Method = Literal["exact", "efdm", "efdmt", "dmma", "dmmat"]
+assert set(METHODS) == {"exact", "efdm", "efdmt", "dmma", "dmmat"}
+
+
+class Circle(BaseModel):
+    """A circular initial contour."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    center: Point
+    radius: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]
+    count: Annotated[int, Field(ge=3, description="number of nodes")] = 64
+
+
+class SessionCreate(BaseModel):
+    """``POST /v1/sessions``: the initial contour and the model."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    nodes: list[Point] | None = Field(None, description="initial contour, [[x, y], ...]")
+    circle: Circle | None = None
+    closed: bool = True
+    stiffness: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)] = 10.0
+    method: Method = "exact"
+    tracking: dict[str, Any] = Field(
+        default_factory=dict, description="engine.TrackerOptions fields, e.g. {'stiffness': 40}"
+    )
+
+    @model_validator(mode="after")
+    def _one_contour(self) -> SessionCreate:
+        if (self.nodes is None) == (self.circle is None):
+            raise ValueError("give exactly one of 'nodes' or 'circle'")
+        return self
+
+
+class SessionOut(BaseModel):
+    """A session as the API shows it."""
+
+    id: str
+    nodes: list[Point]
+    closed: bool
+    stiffness: float
+    method: Method
+    tracking: dict[str, Any]
+    frame_index: int = Field(description="index of the last tracked frame; -1 before any")
+    version: int = Field(description="incremented by every change; use with If-Match")
+    expires_at: str = Field(description="ISO 8601 UTC; idle sessions expire")
+
+
+class ForcesIn(BaseModel):
+    """``POST /v1/sessions/{id}/forces``: one force per node."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    forces: list[Point] = Field(description="[[fx, fy], ...], one per node, pixels")
+
+
+class ForcesOut(BaseModel):
+    """Equilibrium under the forces: nodes = rest + displacements (paper eq. 15)."""
+
+    nodes: list[Point]
+    displacements: list[Point]
+    version: int
+
+
+class FrameOut(BaseModel):
+    """Result of tracking one frame."""
+
+    frame_index: int
+    nodes: list[Point]
+    iterations: int
+    converged: bool
+    confidence: float = Field(ge=0, le=1)
+    version: int
+    elapsed_ms: float
+
+
+class StreamFrameOut(FrameOut):
+    """A frame result on the WebSocket, with frames skipped since the last one."""
+
+    dropped: int = Field(description="frames skipped because a newer one arrived first")
+
+
+class ErrorDetail(BaseModel):
+    """What went wrong."""
+
+    status: int
+    code: str
+    message: str
+
+
+class ErrorOut(BaseModel):
+    """Every error response."""
+
+    error: ErrorDetail

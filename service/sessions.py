@@ -1,0 +1,139 @@
+"""A tracking session: the contour, its physics and its tracker (no web code).
+
+All methods are synchronous and CPU-bound; the routes run them in worker
+threads.  Coordinates are ``[x, y]`` pixels.
+"""
+
+from __future__ import annotations
+
+import secrets
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine import Tracker, deform
+from engine.geometry import circle_nodes
+from service.errors import ApiError
+from service.schemas import SessionCreate
+
+
+def new_id() -> str:
+    """An unguessable session id (128 random bits, URL-safe)."""
+    return secrets.token_urlsafe(16)
+
+
+@dataclass
+class Session:
+    """One client's deformable contour and tracker.
+
+    ``rest`` is the shape forces act on (the initial contour, then each tracked
+    contour); ``nodes`` the latest result (of forces or of a frame).
+    """
+
+    id: str
+    owner: str | None
+    closed: bool
+    stiffness: float
+    method: str
+    tracking: dict[str, Any]
+    rest: NDArray[np.float64]
+    nodes: NDArray[np.float64]
+    frame_index: int = -1
+    version: int = 1
+    touched: float = field(default_factory=time.time)
+    tracker: Tracker | None = None
+
+    @classmethod
+    def create(cls, spec: SessionCreate, owner: str | None, max_nodes: int) -> Session:
+        """Validate the request's contour and options; raises ApiError(422)."""
+        if spec.circle is not None:
+            c = spec.circle
+            if c.count > max_nodes:
+                raise ApiError(422, "invalid", f"circle.count exceeds the limit of {max_nodes}")
+            nodes = circle_nodes(c.center, c.radius, c.count)
+        else:
+            nodes = np.asarray(spec.nodes, dtype=np.float64)
+        need = 3 if spec.closed else 2
+        if not need <= len(nodes) <= max_nodes:
+            raise ApiError(
+                422, "invalid", f"nodes: need {need} to {max_nodes} nodes; got {len(nodes)}"
+            )
+        try:
+            tracker = Tracker(nodes, **spec.tracking) if spec.closed else None
+        except (TypeError, ValueError) as exc:
+            raise ApiError(422, "invalid", f"tracking: {exc}") from None
+        if spec.closed and tracker is not None:
+            nodes = tracker.nodes  # evenly spaced by arc length
+        return cls(
+            id=new_id(),
+            owner=owner,
+            closed=spec.closed,
+            stiffness=spec.stiffness,
+            method=spec.method,
+            tracking=dict(spec.tracking),
+            rest=nodes.copy(),
+            nodes=nodes.copy(),
+            tracker=tracker,
+        )
+
+    def apply_forces(self, forces: list[tuple[float, float]]) -> NDArray[np.float64]:
+        """Equilibrium of the rest shape under ``forces``; returns the displacements.
+
+        The tracker restarts from the deformed contour (the next frame
+        re-initialises its colour model there).
+        """
+        F = np.asarray(forces, dtype=np.float64)
+        if F.shape != self.rest.shape:
+            raise ApiError(
+                422, "invalid", f"forces: need {len(self.rest)} forces, one per node; got {len(F)}"
+            )
+        try:
+            U = deform(F, self.stiffness, closed=self.closed, method=self.method)
+        except ValueError as exc:
+            raise ApiError(422, "invalid", f"forces: {exc}") from None
+        self.nodes = self.rest + U
+        if self.tracker is not None:
+            self.tracker.reset(self.nodes)
+        self.version += 1
+        return U
+
+    def track(self, frame: NDArray[np.uint8]) -> dict[str, Any]:
+        """One tracker step on a decoded frame; returns the frame result fields."""
+        if self.tracker is None:
+            raise ApiError(422, "invalid", "frames need a closed contour (an object boundary)")
+        start = time.perf_counter()
+        try:
+            result = self.tracker.step(frame)
+        except ValueError as exc:
+            raise ApiError(400, "bad_image", str(exc)) from None
+        self.frame_index += 1
+        self.nodes = result.nodes
+        self.rest = result.nodes.copy()
+        self.version += 1
+        return {
+            "frame_index": self.frame_index,
+            "nodes": self.nodes.tolist(),
+            "iterations": result.iterations,
+            "converged": result.converged,
+            "confidence": result.confidence,
+            "version": self.version,
+            "elapsed_ms": (time.perf_counter() - start) * 1e3,
+        }
+
+    def describe(self, ttl: float) -> dict[str, Any]:
+        """The API's view of the session."""
+        expires = time.gmtime(self.touched + ttl)
+        return {
+            "id": self.id,
+            "nodes": self.nodes.tolist(),
+            "closed": self.closed,
+            "stiffness": self.stiffness,
+            "method": self.method,
+            "tracking": self.tracking,
+            "frame_index": self.frame_index,
+            "version": self.version,
+            "expires_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", expires),
+        }

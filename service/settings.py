@@ -1,0 +1,41 @@
+"""Service settings, in one place: environment variables prefixed ``EFDM_``."""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Annotated
+
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    """Configuration of ``efdm serve`` (e.g. ``EFDM_PORT=9000``, ``EFDM_API_KEYS=a,b``)."""
+
+    model_config = SettingsConfigDict(env_prefix="EFDM_", frozen=True)
+
+    host: str = "127.0.0.1"
+    port: int = Field(8000, ge=0, le=65535)
+    session_ttl_seconds: float = Field(900.0, gt=0, description="idle sessions expire")
+    max_sessions: int = Field(1000, ge=1)
+    max_nodes: int = Field(4096, ge=3)
+    max_frame_bytes: int = Field(8 * 1024 * 1024, ge=1024, description="encoded image size")
+    max_frame_pixels: int = Field(4096 * 2160, ge=64, description="decoded width x height")
+    max_json_bytes: int = Field(2 * 1024 * 1024, ge=1024, description="JSON request bodies")
+    api_keys: Annotated[tuple[str, ...], NoDecode] = Field(
+        (), description="comma-separated; when set, every /v1 call needs a Bearer key"
+    )
+    workers: int = Field(0, ge=0, description="CPU threads for tracking; 0 = number of cores")
+    log_level: str = Field("warning", pattern="^(critical|error|warning|info|debug)$")
+
+    @field_validator("api_keys", mode="before")
+    @classmethod
+    def _split_keys(cls, value: object) -> object:
+        if isinstance(value, str):
+            return tuple(k.strip() for k in value.split(",") if k.strip())
+        return value
+
+    @cached_property
+    def auth_enabled(self) -> bool:
+        """Whether API keys are required."""
+        return bool(self.api_keys)

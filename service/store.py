@@ -1,0 +1,123 @@
+"""Where sessions live: the interface, and the embedded in-memory store.
+
+A store hands out a session under an exclusive *lease* (one mutation at a
+time per session; other sessions proceed in parallel) and keeps what the
+lease committed.  The in-memory store is the default; a shared store for
+several replicas implements the same interface.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import AsyncIterator
+from typing import Protocol
+
+from service import metrics
+from service.errors import ApiError, not_found
+from service.sessions import Session
+
+
+class SessionStore(Protocol):
+    """The contract every session store fulfils."""
+
+    async def add(self, session: Session) -> None:
+        """Keep a new session; ApiError(429) when the store is full."""
+
+    def lease(
+        self, session_id: str, owner: str | None
+    ) -> contextlib.AbstractAsyncContextManager[Session]:
+        """Exclusive access to a session; ApiError(404) if unknown, expired or not the owner's."""
+
+    async def delete(self, session_id: str, owner: str | None) -> None:
+        """Remove a session; ApiError(404) as for :meth:`lease`."""
+
+    async def ping(self) -> bool:
+        """Whether the store is reachable."""
+
+    async def count(self) -> int:
+        """How many sessions are held."""
+
+    async def sweep(self) -> int:
+        """Drop expired sessions; returns how many."""
+
+    async def close(self) -> None:
+        """Release resources."""
+
+
+class MemoryStore:
+    """Sessions in this process's memory, capped in number, expiring when idle."""
+
+    def __init__(self, *, max_sessions: int, ttl: float) -> None:
+        self.max_sessions = max_sessions
+        self.ttl = ttl
+        self._sessions: dict[str, Session] = {}
+        self._locks: dict[str, asyncio.Lock] = {}
+
+    def _expired(self, session: Session, now: float) -> bool:
+        return now - session.touched > self.ttl
+
+    def _drop(self, session_id: str) -> None:
+        self._sessions.pop(session_id, None)
+        self._locks.pop(session_id, None)
+        metrics.SESSIONS.set(len(self._sessions))
+
+    async def add(self, session: Session) -> None:
+        if len(self._sessions) >= self.max_sessions:
+            await self.sweep()
+        if len(self._sessions) >= self.max_sessions:
+            raise ApiError(
+                429,
+                "too_many_sessions",
+                f"session limit of {self.max_sessions} reached",
+                **{"Retry-After": "10"},
+            )
+        self._sessions[session.id] = session
+        self._locks[session.id] = asyncio.Lock()
+        metrics.SESSIONS.set(len(self._sessions))
+
+    def _find(self, session_id: str, owner: str | None) -> Session:
+        session = self._sessions.get(session_id)
+        if session is None or session.owner != owner:
+            raise not_found()
+        if self._expired(session, time.time()):
+            self._drop(session_id)
+            raise not_found()
+        return session
+
+    @contextlib.asynccontextmanager
+    async def lease(self, session_id: str, owner: str | None) -> AsyncIterator[Session]:
+        self._find(session_id, owner)
+        lock = self._locks[session_id]
+        async with lock:
+            session = self._find(session_id, owner)  # may have gone while we waited
+            session.touched = time.time()
+            yield session
+            session.touched = time.time()
+
+    async def delete(self, session_id: str, owner: str | None) -> None:
+        self._find(session_id, owner)
+        self._drop(session_id)
+
+    async def ping(self) -> bool:
+        return True
+
+    async def count(self) -> int:
+        return len(self._sessions)
+
+    async def sweep(self) -> int:
+        now = time.time()
+        stale = [
+            sid
+            for sid, s in self._sessions.items()
+            if self._expired(s, now) and not self._locks[sid].locked()
+        ]
+        for sid in stale:
+            self._drop(sid)
+        return len(stale)
+
+    async def close(self) -> None:
+        self._sessions.clear()
+        self._locks.clear()
+        metrics.SESSIONS.set(0)
