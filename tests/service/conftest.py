@@ -1,0 +1,85 @@
+"""Shared fixtures: settings, the app in-process, and a real server on loopback."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import pytest
+import uvicorn
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.settings import Settings
+
+
+def free_port() -> int:
+    """A free TCP port on 127.0.0.1."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def disc_frame(cx: float, cy: float, *, r: int = 40, shape: tuple[int, int] = (240, 320)) -> bytes:
+    """A JPEG of a red disc on a light textured background (BGR, ``[x, y]`` centre)."""
+    rng = np.random.default_rng(1)
+    img = cv2.GaussianBlur(rng.integers(150, 230, (*shape, 3), dtype=np.uint8), (0, 0), 2)
+    img = np.ascontiguousarray(img)
+    cv2.circle(img, (round(cx * 16), round(cy * 16)), r * 16, (40, 40, 170), -1, cv2.LINE_AA, 4)
+    ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 92])
+    assert ok
+    return data.tobytes()
+
+
+@pytest.fixture
+def settings() -> Settings:
+    """Embedded defaults, small limits where tests need them."""
+    return Settings(max_sessions=50, session_ttl_seconds=600)
+
+
+@pytest.fixture
+def client(settings: Settings) -> Iterator[TestClient]:
+    """The app in-process (lifespan run), as a Starlette TestClient."""
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+@dataclass
+class LiveServer:
+    """A real uvicorn server on 127.0.0.1."""
+
+    url: str
+    ws_url: str
+    settings: Settings
+
+
+def _serve(settings: Settings) -> Iterator[LiveServer]:
+    port = free_port()
+    config = uvicorn.Config(
+        create_app(settings), host="127.0.0.1", port=port, log_level="warning", lifespan="on"
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not server.started:
+        if time.monotonic() > deadline or not thread.is_alive():
+            raise RuntimeError("uvicorn did not start")
+        time.sleep(0.02)
+    try:
+        yield LiveServer(f"http://127.0.0.1:{port}", f"ws://127.0.0.1:{port}", settings)
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+
+
+@pytest.fixture
+def live_server(settings: Settings) -> Iterator[LiveServer]:
+    """A real server (uvicorn, loopback) with the test settings."""
+    yield from _serve(settings)
