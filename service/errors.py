@@ -9,6 +9,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import compile_path
 
 from service import metrics
 
@@ -36,6 +37,15 @@ def body(status: int, code: str, message: str, **extra: Any) -> dict[str, Any]:
     return {"error": {"status": status, "code": code, "message": message, **extra}}
 
 
+def allowed_methods(app: FastAPI, path: str) -> list[str]:
+    """The HTTP methods the API offers on ``path`` (from its OpenAPI paths)."""
+    methods: set[str] = set()
+    for template, operations in app.openapi().get("paths", {}).items():
+        if compile_path(template)[0].match(path):
+            methods.update(m.upper() for m in operations)
+    return sorted(methods)
+
+
 def install(app: FastAPI) -> None:
     """Register the handlers that turn every failure into a JSON error."""
 
@@ -58,15 +68,18 @@ def install(app: FastAPI) -> None:
         return JSONResponse(body(422, "invalid", message, details=details), status_code=422)
 
     @app.exception_handler(StarletteHTTPException)
-    async def http_error(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+    async def http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         code = {404: "not_found", 405: "method_not_allowed", 413: "too_large"}.get(
             exc.status_code, "http_error"
         )
         metrics.ERRORS.labels(kind=code).inc()
+        headers = dict(getattr(exc, "headers", None) or {})
+        if exc.status_code == 405:  # every method of the path (RFC 9110), not one route's
+            headers["Allow"] = ", ".join(allowed_methods(request.app, request.url.path))
         return JSONResponse(
             body(exc.status_code, code, str(exc.detail)),
             status_code=exc.status_code,
-            headers=getattr(exc, "headers", None),
+            headers=headers or None,
         )
 
     @app.exception_handler(Exception)

@@ -12,7 +12,10 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from engine.deform import METHODS
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+LIMIT = 1e9
+"""Largest coordinate or force magnitude accepted (pixels): far beyond any image,
+far below where float64 arithmetic on a contour could overflow."""
+Finite = Annotated[float, Field(allow_inf_nan=False, ge=-LIMIT, le=LIMIT)]
 Point = Annotated[tuple[Finite, Finite], Field(description="[x, y] pixels")]
 Method = Literal["exact", "efdm", "efdmt", "dmma", "dmmat"]
 assert set(METHODS) == {"exact", "efdm", "efdmt", "dmma", "dmmat"}

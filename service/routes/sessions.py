@@ -6,6 +6,7 @@ import time
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Header, Request, Response, status
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from service import metrics
 from service.auth import request_owner
@@ -117,18 +118,17 @@ async def read_image(request: Request) -> tuple[bytes, str | None]:
     content_type = request.headers.get("content-type", "")
     if content_type.startswith("multipart/form-data"):
         try:
-            form = await request.form(
+            async with request.form(
                 max_files=1, max_fields=8, max_part_size=settings.max_frame_bytes + 1
-            )
-        except ApiError:
+            ) as form:  # closes the spooled upload afterwards
+                upload = form.get("file")
+                if upload is None or isinstance(upload, str):
+                    raise ApiError(422, "invalid", "multipart body needs a file field 'file'")
+                return await upload.read(), upload.content_type
+        except (ApiError, StarletteHTTPException):
             raise
         except Exception as exc:  # malformed multipart framing
             raise ApiError(400, "bad_request", f"malformed multipart body: {exc}") from None
-        upload = form.get("file")
-        if upload is None or isinstance(upload, str):
-            raise ApiError(422, "invalid", "multipart body needs a file field 'file'")
-        data = await upload.read()
-        return data, upload.content_type
     return await request.body(), content_type or None
 
 

@@ -95,8 +95,12 @@ async def stream(websocket: WebSocket, session_id: str) -> None:
             tasks.start_soon(_work, websocket, session_id, owner, inbox)
             await _receive(websocket, inbox)
             tasks.cancel_scope.cancel()
-    except _FatalError as fatal:
+    except* _FatalError as group:  # task groups raise exception groups
+        fatal = group.exceptions[0]
+        assert isinstance(fatal, _FatalError)
         await _close(websocket, fatal.code, fatal.reason)
+    except* (WebSocketDisconnect, ClientGoneError):
+        pass  # the client left while a result was on its way
     finally:
         metrics.WEBSOCKETS.dec()
 
@@ -106,6 +110,17 @@ class _FatalError(Exception):
         super().__init__(reason)
         self.code = code
         self.reason = reason
+
+
+class ClientGoneError(Exception):
+    """The client disconnected while the server was sending."""
+
+
+async def _send(websocket: WebSocket, message: dict[str, Any]) -> None:
+    try:
+        await websocket.send_json(message)
+    except (WebSocketDisconnect, RuntimeError, OSError) as exc:
+        raise ClientGoneError from exc
 
 
 async def _close(websocket: WebSocket, code: int, reason: str) -> None:
@@ -126,11 +141,11 @@ async def _receive(websocket: WebSocket, inbox: Inbox) -> None:
                 raise _FatalError(1009, f"frame exceeds {settings.max_frame_bytes} bytes")
             inbox.put_frame(data)
         elif text is not None:
-            if len(text) > settings.max_json_bytes:
+            if len(text.encode()) > settings.max_json_bytes:
                 raise _FatalError(1009, f"message exceeds {settings.max_json_bytes} bytes")
             try:
                 parsed = json.loads(text)
-            except ValueError:
+            except (ValueError, RecursionError):  # not JSON, or nested beyond reason
                 await websocket.send_json(
                     error_message(ApiError(400, "bad_request", "text messages must be JSON"))
                 )
@@ -160,13 +175,17 @@ async def _work(websocket: WebSocket, session_id: str, owner: str | None, inbox:
         if inbox.frame is not None:
             data, dropped = inbox.frame, inbox.dropped
             inbox.frame, inbox.dropped = None, 0
-            await websocket.send_json(await _frame(websocket, session_id, owner, data, dropped))
+            await _send(websocket, await _frame(websocket, session_id, owner, data, dropped))
 
 
 async def _control(
     websocket: WebSocket, session_id: str, owner: str | None, message: dict[str, Any]
 ) -> dict[str, Any]:
     if "ping" in message:
+        try:
+            json.dumps(message["ping"], allow_nan=False)  # echo only what JSON can carry
+        except ValueError:
+            return error_message(ApiError(422, "invalid", "ping: NaN and Infinity are not JSON"))
         return {"type": "pong", "pong": message["ping"]}
     try:
         payload = ForcesIn.model_validate({"forces": message.get("forces")})

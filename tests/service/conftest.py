@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import socket
 import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -83,3 +85,60 @@ def _serve(settings: Settings) -> Iterator[LiveServer]:
 def live_server(settings: Settings) -> Iterator[LiveServer]:
     """A real server (uvicorn, loopback) with the test settings."""
     yield from _serve(settings)
+
+
+class RedisServer:
+    """A throwaway ``redis-server`` on a free loopback port (no persistence)."""
+
+    def __init__(self) -> None:
+        import shutil
+        import subprocess
+
+        binary = shutil.which("redis-server")
+        if binary is None:
+            message = "redis-server is not installed (Debian package redis-server)"
+            if os.environ.get("CI"):
+                pytest.fail(message)  # CI installs it: never skip there
+            pytest.skip(message)
+        self.port = free_port()
+        self.url = f"redis://127.0.0.1:{self.port}/0"
+        self._args = [
+            binary, "--port", str(self.port), "--bind", "127.0.0.1",
+            "--save", "", "--appendonly", "no", "--protected-mode", "yes",
+        ]  # fmt: skip
+        self._popen = subprocess.Popen
+        self.process = self.start()
+
+    def start(self) -> Any:
+        """Start (or restart) the server and wait until it answers."""
+        import subprocess
+
+        process = self._popen(self._args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", self.port)) == 0:
+                    return process
+            time.sleep(0.02)
+        process.kill()
+        raise RuntimeError("redis-server did not start")
+
+    def stop(self) -> None:
+        """Stop the server (data is lost: no persistence)."""
+        self.process.terminate()
+        self.process.wait(timeout=10)
+
+    def restart(self) -> None:
+        """Stop and start again on the same port."""
+        self.stop()
+        self.process = self.start()
+
+
+@pytest.fixture(scope="session")
+def redis_server() -> Iterator[RedisServer]:
+    """One redis-server for the test session."""
+    server = RedisServer()
+    try:
+        yield server
+    finally:
+        server.stop()

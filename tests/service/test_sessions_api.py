@@ -1,0 +1,416 @@
+"""``/v1/sessions`` over REST: create, read, delete, forces and frames."""
+
+from __future__ import annotations
+
+import re
+import time
+from datetime import UTC, datetime
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from numpy.typing import NDArray
+
+from engine import Tracker, deform
+from engine.geometry import circle_nodes
+from service.settings import Settings
+from tests.service.conftest import disc_frame
+
+CIRCLE: dict[str, Any] = {"circle": {"center": [160, 120], "radius": 40}}
+POLYGON: list[list[float]] = [
+    [100.0, 80.0],
+    [180.0, 70.0],
+    [230.0, 120.0],
+    [200.0, 170.0],
+    [120.0, 160.0],
+    [90.0, 120.0],
+]
+METHODS = ["exact", "efdm", "efdmt", "dmma", "dmmat"]
+
+
+def create(client: TestClient, spec: dict[str, Any] | None = None) -> dict[str, Any]:
+    response = client.post("/v1/sessions", json=CIRCLE if spec is None else spec)
+    assert response.status_code == 201, response.text
+    body: dict[str, Any] = response.json()
+    return body
+
+
+def bgr(data: bytes) -> NDArray[np.uint8]:
+    """Decode an encoded frame as the library's users would."""
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    assert image is not None
+    return np.asarray(image, dtype=np.uint8)
+
+
+def encoded(kind: str, cx: float = 160, cy: float = 120) -> bytes:
+    """The disc frame as ``kind`` (jpeg, png or webp)."""
+    jpeg = disc_frame(cx, cy)
+    if kind == "jpeg":
+        return jpeg
+    ok, data = cv2.imencode(f".{kind}", bgr(jpeg))
+    assert ok
+    return data.tobytes()
+
+
+def post_frame(
+    client: TestClient, sid: str, data: bytes, media_type: str = "image/jpeg", **headers: str
+) -> Any:
+    return client.post(
+        f"/v1/sessions/{sid}/frames", content=data, headers={"content-type": media_type, **headers}
+    )
+
+
+def error_of(response: Any, status: int) -> dict[str, Any]:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"].startswith("application/json")
+    error: dict[str, Any] = response.json()["error"]
+    assert error["status"] == status
+    assert isinstance(error["code"], str)
+    assert isinstance(error["message"], str)
+    assert error["message"]
+    return error
+
+
+def as_array(value: Any) -> NDArray[np.float64]:
+    return np.asarray(value, dtype=np.float64)
+
+
+# -- create, read, delete ---------------------------------------------------------------------
+
+
+def test_create_with_nodes(client: TestClient, settings: Settings) -> None:
+    response = client.post(
+        "/v1/sessions", json={"nodes": POLYGON, "stiffness": 25, "method": "efdm"}
+    )
+    assert response.status_code == 201
+    body = response.json()
+    assert response.headers["location"] == f"/v1/sessions/{body['id']}"
+    assert response.headers["etag"] == '"1"'
+    assert set(body) == {
+        "id",
+        "nodes",
+        "closed",
+        "stiffness",
+        "method",
+        "tracking",
+        "frame_index",
+        "version",
+        "expires_at",
+    }
+    assert body["closed"] is True
+    assert body["stiffness"] == 25
+    assert body["method"] == "efdm"
+    assert body["tracking"] == {}
+    assert (body["frame_index"], body["version"]) == (-1, 1)
+    nodes = as_array(body["nodes"])
+    assert nodes.shape == (len(POLYGON), 2)
+    # closed contours are resampled evenly by arc length, as the tracker does
+    assert np.array_equal(nodes, Tracker(POLYGON).nodes)
+    assert not np.array_equal(nodes, as_array(POLYGON))
+    expires = datetime.strptime(body["expires_at"], "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=UTC)
+    assert abs(expires.timestamp() - (time.time() + settings.session_ttl_seconds)) < 5
+
+
+def test_create_open_chain_keeps_the_nodes(client: TestClient) -> None:
+    body = create(client, {"nodes": POLYGON, "closed": False})
+    assert body["closed"] is False
+    assert body["nodes"] == POLYGON
+
+
+def test_create_with_circle(client: TestClient) -> None:
+    body = create(client, {"circle": {"center": [150, 110], "radius": 30, "count": 24}})
+    nodes = as_array(body["nodes"])
+    assert nodes.shape == (24, 2)
+    assert np.allclose(np.hypot(nodes[:, 0] - 150, nodes[:, 1] - 110), 30)
+    assert len(create(client)["nodes"]) == 64  # default count
+
+
+def test_session_ids_are_unguessable(client: TestClient) -> None:
+    ids = [create(client)["id"] for _ in range(20)]
+    assert len(set(ids)) == len(ids)
+    for sid in ids:
+        assert len(sid) >= 16
+        assert re.fullmatch(r"[A-Za-z0-9_-]+", sid)
+
+
+def test_get_returns_the_session(client: TestClient) -> None:
+    created = client.post("/v1/sessions", json={"nodes": POLYGON, "stiffness": 3})
+    sid = created.json()["id"]
+    response = client.get(created.headers["location"])
+    assert response.status_code == 200
+    assert response.headers["etag"] == '"1"'
+    body = response.json()
+    assert {k: v for k, v in body.items() if k != "expires_at"} == {
+        k: v for k, v in created.json().items() if k != "expires_at"
+    }
+    assert body["id"] == sid
+
+
+def test_delete(client: TestClient) -> None:
+    sid = create(client)["id"]
+    response = client.delete(f"/v1/sessions/{sid}")
+    assert response.status_code == 204
+    assert response.content == b""
+    assert error_of(client.get(f"/v1/sessions/{sid}"), 404)["code"] == "not_found"
+    error_of(client.delete(f"/v1/sessions/{sid}"), 404)
+    error_of(client.post(f"/v1/sessions/{sid}/forces", json={"forces": [[0, 0]] * 64}), 404)
+    error_of(post_frame(client, sid, disc_frame(160, 120)), 404)
+
+
+def test_unknown_session_is_not_found(client: TestClient) -> None:
+    error = error_of(client.get("/v1/sessions/AAAAAAAAAAAAAAAAAAAAAA"), 404)
+    assert error["code"] == "not_found"
+
+
+def test_unknown_route_is_a_json_404(client: TestClient) -> None:
+    error_of(client.get("/v1/nothing/here"), 404)
+
+
+def test_method_not_allowed_lists_the_allowed_methods(client: TestClient) -> None:
+    """RFC 9110 15.5.6: a 405 carries Allow with every method the resource supports."""
+    sid = create(client)["id"]
+    response = client.put(f"/v1/sessions/{sid}", json={})
+    error_of(response, 405)
+    allowed = {m.strip() for m in response.headers["allow"].split(",")}
+    assert {"GET", "DELETE"} <= allowed
+    response = client.get("/v1/sessions")
+    error_of(response, 405)
+    assert "POST" in response.headers["allow"]
+
+
+# -- forces -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("closed", [True, False], ids=["closed", "open"])
+def test_forces_match_the_engine(client: TestClient, method: str, closed: bool) -> None:
+    body = create(client, {"nodes": POLYGON, "closed": closed, "stiffness": 7, "method": method})
+    rest = as_array(body["nodes"])
+    forces = np.random.default_rng(5).normal(0, 20, rest.shape)
+    response = client.post(f"/v1/sessions/{body['id']}/forces", json={"forces": forces.tolist()})
+    assert response.status_code == 200, response.text
+    assert response.headers["etag"] == '"2"'
+    out = response.json()
+    assert out["version"] == 2
+    U = deform(forces, 7, closed=closed, method=method)
+    assert np.array_equal(as_array(out["displacements"]), U)
+    assert np.array_equal(as_array(out["nodes"]), rest + U)
+    after = client.get(f"/v1/sessions/{body['id']}").json()
+    assert after["nodes"] == out["nodes"]
+    assert after["version"] == 2
+
+
+def test_forces_act_on_the_rest_shape_not_cumulatively(client: TestClient) -> None:
+    body = create(client, {"nodes": POLYGON})
+    rest = as_array(body["nodes"])
+    url = f"/v1/sessions/{body['id']}/forces"
+    push = [[5.0, 0.0]] * len(POLYGON)
+    first = client.post(url, json={"forces": push}).json()
+    second = client.post(url, json={"forces": push}).json()
+    assert second["nodes"] == first["nodes"]
+    assert np.array_equal(as_array(second["nodes"]), rest + deform(as_array(push), 10.0))
+    assert second["version"] == 3
+
+
+def test_forces_on_the_shortest_open_chain(client: TestClient) -> None:
+    body = create(client, {"nodes": [[0, 0], [10, 0]], "closed": False, "stiffness": 1})
+    out = client.post(f"/v1/sessions/{body['id']}/forces", json={"forces": [[1, 0], [-1, 0]]})
+    assert out.status_code == 200
+    U = deform([[1.0, 0.0], [-1.0, 0.0]], 1.0, closed=False)
+    assert np.array_equal(as_array(out.json()["displacements"]), U)
+    assert out.json()["nodes"][0][0] > 0  # pulled together, less than freely
+
+
+# -- frames -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kind", "media_type"),
+    [
+        ("jpeg", "image/jpeg"),
+        ("png", "image/png"),
+        ("webp", "image/webp"),
+        ("jpeg", "application/octet-stream"),
+        ("png", "application/octet-stream"),
+    ],
+)
+def test_frames_raw(client: TestClient, kind: str, media_type: str) -> None:
+    sid = create(client)["id"]
+    response = post_frame(client, sid, encoded(kind), media_type)
+    assert response.status_code == 200, response.text
+    assert response.headers["etag"] == '"2"'
+    out = response.json()
+    assert set(out) == {
+        "frame_index",
+        "nodes",
+        "iterations",
+        "converged",
+        "confidence",
+        "version",
+        "elapsed_ms",
+    }
+    assert (out["frame_index"], out["version"]) == (0, 2)
+    assert len(out["nodes"]) == 64
+    assert isinstance(out["iterations"], int)
+    assert isinstance(out["converged"], bool)
+    assert 0 <= out["confidence"] <= 1
+    assert out["elapsed_ms"] >= 0
+    moved = post_frame(client, sid, encoded(kind, 165, 122), media_type).json()
+    centre = as_array(moved["nodes"]).mean(axis=0)
+    assert np.hypot(centre[0] - 165, centre[1] - 122) < 2
+
+
+@pytest.mark.parametrize("kind", ["jpeg", "png", "webp"])
+def test_frames_multipart(client: TestClient, kind: str) -> None:
+    sid = create(client)["id"]
+    response = client.post(
+        f"/v1/sessions/{sid}/frames",
+        files={"file": (f"frame.{kind}", encoded(kind), f"image/{kind}")},
+    )
+    assert response.status_code == 200, response.text
+    assert response.json()["frame_index"] == 0
+
+
+def test_multipart_needs_a_file_field_named_file(client: TestClient) -> None:
+    sid = create(client)["id"]
+    url = f"/v1/sessions/{sid}/frames"
+    wrong_name = client.post(url, files={"image": ("f.jpg", disc_frame(160, 120), "image/jpeg")})
+    assert error_of(wrong_name, 422)["code"] == "invalid"
+    not_a_file = client.post(
+        url, data={"file": "not a file"}, files={"other": ("f.jpg", b"x", "image/jpeg")}
+    )
+    error_of(not_a_file, 422)
+    text_file = client.post(url, files={"file": ("f.txt", b"hello", "text/plain")})
+    assert error_of(text_file, 415)["code"] == "unsupported_media_type"
+    broken = client.post(
+        url,
+        content=b"--xyz\r\nContent-Disposition: form-data; name=file\r\n\r\nabc",
+        headers={"content-type": "multipart/form-data; boundary=xyz"},
+    )
+    assert 400 <= broken.status_code < 500
+    assert client.get(f"/v1/sessions/{sid}").json()["frame_index"] == -1
+
+
+def test_frame_index_and_version_increment(client: TestClient) -> None:
+    sid = create(client)["id"]
+    for i in range(4):
+        response = post_frame(client, sid, disc_frame(160 + i, 120))
+        out = response.json()
+        assert (out["frame_index"], out["version"]) == (i, i + 2)
+        assert response.headers["etag"] == f'"{i + 2}"'
+    session = client.get(f"/v1/sessions/{sid}")
+    assert session.json()["frame_index"] == 3
+    assert session.json()["version"] == 5
+    assert session.json()["nodes"] == out["nodes"]
+    assert session.headers["etag"] == '"5"'
+
+
+def test_frames_on_an_open_contour_are_refused(client: TestClient) -> None:
+    sid = create(client, {"nodes": POLYGON, "closed": False})["id"]
+    error = error_of(post_frame(client, sid, disc_frame(160, 120)), 422)
+    assert error["code"] == "invalid"
+    assert "closed" in error["message"]
+
+
+# -- If-Match ---------------------------------------------------------------------------------
+
+
+def test_if_match_on_forces(client: TestClient) -> None:
+    body = create(client, {"nodes": POLYGON})
+    url = f"/v1/sessions/{body['id']}/forces"
+    forces = {"forces": [[1, 1]] * len(POLYGON)}
+    stale = client.post(url, json=forces, headers={"if-match": '"7"'})
+    assert error_of(stale, 412)["code"] == "version_mismatch"
+    assert client.get(f"/v1/sessions/{body['id']}").json()["version"] == 1  # unchanged
+    current = client.post(url, json=forces, headers={"if-match": '"1"'})
+    assert current.status_code == 200
+    assert current.headers["etag"] == '"2"'
+    error_of(client.post(url, json=forces, headers={"if-match": '"1"'}), 412)  # now stale
+    assert client.post(url, json=forces, headers={"if-match": "*"}).status_code == 200
+    assert client.post(url, json=forces, headers={"if-match": 'W/"3"'}).status_code == 200
+    assert client.post(url, json=forces, headers={"if-match": "4"}).status_code == 200
+
+
+def test_if_match_on_frames(client: TestClient) -> None:
+    sid = create(client)["id"]
+    frame = disc_frame(160, 120)
+    error_of(post_frame(client, sid, frame, **{"if-match": '"2"'}), 412)
+    assert client.get(f"/v1/sessions/{sid}").json()["frame_index"] == -1
+    ok = post_frame(client, sid, frame, **{"if-match": '"1"'})
+    assert ok.status_code == 200
+    etag = ok.headers["etag"]
+    assert post_frame(client, sid, frame, **{"if-match": etag}).status_code == 200
+    error_of(post_frame(client, sid, frame, **{"if-match": etag}), 412)
+    assert post_frame(client, sid, frame, **{"if-match": "*"}).status_code == 200
+
+
+# -- tracking options -------------------------------------------------------------------------
+
+
+def test_tracking_options_are_passed_to_the_tracker(client: TestClient) -> None:
+    body = create(client, {**CIRCLE, "tracking": {"stiffness": 30}})
+    assert body["tracking"] == {"stiffness": 30}
+    frames = [disc_frame(160 + 3 * i, 120 + 2 * i) for i in range(3)]
+    for data in frames:
+        out = post_frame(client, body["id"], data).json()
+    decoded = [bgr(f) for f in frames]
+    results = {}
+    for stiffness in (30.0, 40.0):
+        tracker = Tracker(circle_nodes((160, 120), 40, 64), stiffness=stiffness)
+        for img in decoded:
+            nodes = tracker.step(img).nodes
+        results[stiffness] = nodes
+    assert not np.array_equal(results[30.0], results[40.0])  # the option matters here
+    assert np.array_equal(as_array(out["nodes"]), results[30.0])
+
+
+@pytest.mark.parametrize(
+    "tracking",
+    [
+        {"stiffness": 0},
+        {"stiffness": -1},
+        {"stiffness": "stiff"},
+        {"iterations": 0},
+        {"iterations": 1.5},
+        {"search_radius": 10_000},
+        {"occlusion": "yes"},
+        {"learning_rate": 2},
+        {"no_such_option": 1},
+        {"nodes": [[0, 0]]},
+        {"closed": False},
+    ],
+)
+def test_invalid_tracking_options(client: TestClient, tracking: dict[str, Any]) -> None:
+    error = error_of(client.post("/v1/sessions", json={**CIRCLE, "tracking": tracking}), 422)
+    assert error["code"] == "invalid"
+    assert error["message"].startswith("tracking")
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [
+        {},
+        {**CIRCLE, "nodes": POLYGON},
+        {**CIRCLE, "extra": 1},
+        {**CIRCLE, "method": "fastest"},
+        {**CIRCLE, "closed": "maybe"},
+        {"circle": {"center": [0, 0]}},
+        {"circle": {"center": [0, 0], "radius": -1}},
+        {"circle": {"center": [0, 0], "radius": 5, "count": 2}},
+        {"circle": {"center": [0], "radius": 5}},
+        {"nodes": [[0, 0, 0], [1, 1, 1], [2, 2, 2]]},
+        {"nodes": "0,0 1,1 2,2"},
+        {"nodes": [["a", "b"], [1, 1], [2, 2]]},
+    ],
+)
+def test_invalid_session_specs(client: TestClient, spec: dict[str, Any]) -> None:
+    assert error_of(client.post("/v1/sessions", json=spec), 422)["code"] == "invalid"
+
+
+def test_invalid_json_is_a_client_error(client: TestClient) -> None:
+    response = client.post(
+        "/v1/sessions", content=b"{not json", headers={"content-type": "application/json"}
+    )
+    error_of(response, 422)
