@@ -27,7 +27,15 @@ log = logging.getLogger("efdm.service")
 
 
 def make_store(settings: Settings) -> SessionStore:
-    """The session store the settings ask for (in memory by default)."""
+    """The session store the settings ask for: in memory, or Redis with ``EFDM_REDIS_URL``."""
+    if settings.redis_url:
+        from service.redis_store import RedisStore
+
+        return RedisStore(
+            settings.redis_url,
+            max_sessions=settings.max_sessions,
+            ttl=settings.session_ttl_seconds,
+        )
     return MemoryStore(max_sessions=settings.max_sessions, ttl=settings.session_ttl_seconds)
 
 
@@ -85,7 +93,7 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
     app.include_router(stream.router)
     app.include_router(health.router)
 
-    if STATIC.is_dir():
+    if (STATIC / "index.html").is_file():
         app.mount("/static", StaticFiles(directory=STATIC), name="static")
 
         @app.get("/", include_in_schema=False)

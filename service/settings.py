@@ -26,6 +26,12 @@ class Settings(BaseSettings):
         (), description="comma-separated; when set, every /v1 call needs a Bearer key"
     )
     workers: int = Field(0, ge=0, description="CPU threads for tracking; 0 = number of cores")
+    redis_url: str | None = Field(
+        None, description="redis://host:port/db: share sessions between replicas"
+    )
+    stream_commit_every: int = Field(
+        1, ge=1, description="a WebSocket stream writes its session through every k frames"
+    )
     log_level: str = Field("warning", pattern="^(critical|error|warning|info|debug)$")
 
     @field_validator("api_keys", mode="before")
