@@ -36,6 +36,8 @@ def run(args: argparse.Namespace, out: Any) -> None:
         port=settings.port,
         log_level=settings.log_level,
         ws_ping_interval=20.0,
+        ws_per_message_deflate=False,  # frames are JPEG: compressing them only costs CPU
+        ws_max_size=max(settings.max_frame_bytes, settings.max_json_bytes) + 1024,
         ws_ping_timeout=20.0,
         timeout_graceful_shutdown=10,
     )
