@@ -95,11 +95,19 @@ def solve_exact(forces: NDArray[np.float64], a: float, closed: bool) -> NDArray[
 
 
 def warm_up() -> None:
-    """Compile (or load from the on-disk cache) the exact solver's kernel.
+    """Compile (or load from the on-disk cache) every compiled kernel of the engine.
 
     Call once at start-up in latency-sensitive programs so that the first
-    real deformation does not pay the compilation.
+    deformation or tracked frame does not pay the compilation.
     """
+    from engine import _kernels
+
     dummy: Any = np.zeros((1, 3, 2))
     solve_exact(dummy, 1.0, True)
     solve_exact(dummy, 1.0, False)
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    _kernels.polyline_crosses(square, True)
+    _kernels.colour_bins(np.zeros((2, 2, 3), np.uint8), 5, 4)
+    _kernels.colour_bins(np.zeros((2, 2), np.uint8), 5, 4)
+    maps = np.zeros((4, 4), np.float32)
+    _kernels.boundary_search(maps, maps, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import gc
 import contextlib
 import logging
 import os
@@ -62,6 +63,8 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         app.state.cpu = CapacityLimiter(settings.workers or os.cpu_count() or 1)
         await anyio.to_thread.run_sync(engine.warm_up)  # compile before the first request
+        gc.collect()
+        gc.freeze()  # start-up objects out of the collector's way: no long gen-2 pauses
         sweeper = asyncio.create_task(
             _sweep(app.state.store, min(60.0, settings.session_ttl_seconds / 4))
         )
