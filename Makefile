@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking clean
+.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking bench-service clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,18 +27,22 @@ lint: $(STAMP)
 
 typecheck: $(STAMP)
 	$(BIN)/mypy
+	$(BIN)/mypy bench/service.py
 
 pytest: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 ## bench: every benchmark; results land in bench/results/
-bench: bench-solvers bench-tracking
+bench: bench-solvers bench-tracking bench-service
 
 bench-solvers: $(STAMP)
 	$(BIN)/python bench/solvers.py
 
 bench-tracking: $(STAMP)
 	$(BIN)/python bench/tracking.py
+
+bench-service: $(STAMP)
+	$(BIN)/python bench/service.py
 
 clean:
 	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache
