@@ -61,6 +61,47 @@ def unavailable() -> ApiError:
     return ApiError(503, "unavailable", "session store unreachable; retry", **{"Retry-After": "1"})
 
 
+class _RedisStreamLease:
+    """A session kept in memory for a stream, written through every k turns."""
+
+    def __init__(
+        self, store: RedisStore, session: Session, owner: str | None, commit_every: int
+    ) -> None:
+        self.store = store
+        self.session = session
+        self.owner = owner
+        self.commit_every = commit_every
+        self.committed = session.version  # the version Redis holds
+        self.pending = 0
+        self.lock = store.lock_for(session.id)
+
+    @contextlib.asynccontextmanager
+    async def turn(self) -> AsyncIterator[Session]:
+        async with self.lock:
+            yield self.session
+            self.session.touched = time.time()
+            if self.session.version != self.committed:
+                self.pending += 1
+                if self.pending >= self.commit_every:
+                    await self._commit()
+
+    async def _commit(self) -> None:
+        try:
+            await self.store.commit(self.session, self.committed)
+        except ApiError as exc:
+            if exc.status == 409:  # changed elsewhere: continue from what Redis holds
+                self.session = await self.store._load(self.session.id, self.owner)
+                self.committed, self.pending = self.session.version, 0
+            raise
+        self.committed, self.pending = self.session.version, 0
+
+    async def flush(self) -> None:
+        """Commit what is still pending (at the end of the stream)."""
+        if self.pending:
+            async with self.lock:
+                await self._commit()
+
+
 class RedisStore:
     """A :class:`service.store.SessionStore` on Redis (redis-py, asyncio)."""
 
@@ -138,17 +179,32 @@ class RedisStore:
         record: dict[str, Any] = json.loads(data)
         return await anyio.to_thread.run_sync(lambda: Session.from_record(record))
 
-    @contextlib.asynccontextmanager
-    async def lease(self, session_id: str, owner: str | None) -> AsyncIterator[Session]:
+    def lock_for(self, session_id: str) -> asyncio.Lock:
+        """This replica's lock for a session (requests here take turns)."""
         lock = self._locks.get(session_id)
         if lock is None:
             lock = self._locks[session_id] = asyncio.Lock()
-        async with lock:
+        return lock
+
+    @contextlib.asynccontextmanager
+    async def lease(self, session_id: str, owner: str | None) -> AsyncIterator[Session]:
+        async with self.lock_for(session_id):
             session = await self._load(session_id, owner)
             expected = session.version
             yield session
             session.touched = time.time()
             await self.commit(session, expected)
+
+    @contextlib.asynccontextmanager
+    async def stream(
+        self, session_id: str, owner: str | None, commit_every: int = 1
+    ) -> AsyncIterator[_RedisStreamLease]:
+        held = _RedisStreamLease(self, await self._load(session_id, owner), owner, commit_every)
+        try:
+            yield held
+        finally:
+            with contextlib.suppress(ApiError):
+                await held.flush()
 
     async def commit(self, session: Session, expected: int) -> None:
         """Write a session back if nobody changed it since ``expected``; else 409."""

@@ -30,6 +30,16 @@ class SessionStore(Protocol):
     ) -> contextlib.AbstractAsyncContextManager[Session]:
         """Exclusive access to a session; ApiError(404) if unknown, expired or not the owner's."""
 
+    def stream(
+        self, session_id: str, owner: str | None, commit_every: int = 1
+    ) -> contextlib.AbstractAsyncContextManager[StreamLease]:
+        """A session held for a WebSocket stream: one :meth:`StreamLease.turn` per frame.
+
+        A shared store keeps the session in memory for the stream and writes it
+        through every ``commit_every`` turns (and at the end), before the
+        stream answers, so what a client was told is committed.
+        """
+
     async def delete(self, session_id: str, owner: str | None) -> None:
         """Remove a session; ApiError(404) as for :meth:`lease`."""
 
@@ -44,6 +54,21 @@ class SessionStore(Protocol):
 
     async def close(self) -> None:
         """Release resources."""
+
+
+class StreamLease(Protocol):
+    """A stream's hold on its session."""
+
+    def turn(self) -> contextlib.AbstractAsyncContextManager[Session]:
+        """Exclusive access for one message; committed (as configured) at exit."""
+
+
+class _MemoryStreamLease:
+    def __init__(self, store: MemoryStore, session_id: str, owner: str | None) -> None:
+        self.store, self.session_id, self.owner = store, session_id, owner
+
+    def turn(self) -> contextlib.AbstractAsyncContextManager[Session]:
+        return self.store.lease(self.session_id, self.owner)  # the live object itself
 
 
 class MemoryStore:
@@ -95,6 +120,13 @@ class MemoryStore:
             session.touched = time.time()
             yield session
             session.touched = time.time()
+
+    @contextlib.asynccontextmanager
+    async def stream(
+        self, session_id: str, owner: str | None, commit_every: int = 1
+    ) -> AsyncIterator[StreamLease]:
+        self._find(session_id, owner)
+        yield _MemoryStreamLease(self, session_id, owner)
 
     async def delete(self, session_id: str, owner: str | None) -> None:
         self._find(session_id, owner)

@@ -37,6 +37,7 @@ from service.deps import compute, settings_of, store_of
 from service.errors import ApiError
 from service.images import decode_frame
 from service.schemas import ForcesIn
+from service.store import StreamLease
 
 router = APIRouter(tags=["stream"])
 
@@ -80,10 +81,11 @@ def error_message(exc: ApiError) -> dict[str, Any]:
 async def stream(websocket: WebSocket, session_id: str) -> None:
     """Track a stream of frames (see the module docstring for the protocol)."""
     await websocket.accept()
+    store = store_of(websocket)
     try:
         owner = websocket_owner(websocket)
-        async with store_of(websocket).lease(session_id, owner):
-            pass
+        held = store.stream(session_id, owner, settings_of(websocket).stream_commit_every)
+        lease = await held.__aenter__()
     except ApiError as exc:
         metrics.ERRORS.labels(kind=exc.code).inc()
         await websocket.close(code=4000 + exc.status, reason=exc.message[:120])
@@ -92,7 +94,7 @@ async def stream(websocket: WebSocket, session_id: str) -> None:
     inbox = Inbox()
     try:
         async with anyio.create_task_group() as tasks:
-            tasks.start_soon(_work, websocket, session_id, owner, inbox)
+            tasks.start_soon(_work, websocket, lease, inbox)
             await _receive(websocket, inbox)
             tasks.cancel_scope.cancel()
     except* _FatalError as group:  # task groups raise exception groups
@@ -103,6 +105,7 @@ async def stream(websocket: WebSocket, session_id: str) -> None:
         pass  # the client left while a result was on its way
     finally:
         metrics.WEBSOCKETS.dec()
+        await held.__aexit__(None, None, None)  # writes through what is pending
 
 
 class _FatalError(Exception):
@@ -163,23 +166,22 @@ async def _receive(websocket: WebSocket, inbox: Inbox) -> None:
                 )
 
 
-async def _work(websocket: WebSocket, session_id: str, owner: str | None, inbox: Inbox) -> None:
+async def _work(websocket: WebSocket, lease: StreamLease, inbox: Inbox) -> None:
     """Process waiting control messages in order, then the newest frame."""
     while True:
         await inbox.ready.wait()
         inbox.ready.clear()
         while inbox.control:
-            await websocket.send_json(
-                await _control(websocket, session_id, owner, inbox.control.popleft())
-            )
+            control = inbox.control.popleft()
+            await _send(websocket, await _control(websocket, lease, control))
         if inbox.frame is not None:
             data, dropped = inbox.frame, inbox.dropped
             inbox.frame, inbox.dropped = None, 0
-            await _send(websocket, await _frame(websocket, session_id, owner, data, dropped))
+            await _send(websocket, await _frame(websocket, lease, data, dropped))
 
 
 async def _control(
-    websocket: WebSocket, session_id: str, owner: str | None, message: dict[str, Any]
+    websocket: WebSocket, lease: StreamLease, message: dict[str, Any]
 ) -> dict[str, Any]:
     if "ping" in message:
         try:
@@ -194,7 +196,7 @@ async def _control(
         where = ".".join(str(p) for p in first["loc"])
         return error_message(ApiError(422, "invalid", f"{where}: {first['msg']}"))
     try:
-        async with store_of(websocket).lease(session_id, owner) as session:
+        async with lease.turn() as session:
             U = await compute(websocket, lambda: session.apply_forces(payload.forces))
             metrics.FORCES.inc()
             return {
@@ -210,12 +212,12 @@ async def _control(
 
 
 async def _frame(
-    websocket: WebSocket, session_id: str, owner: str | None, data: bytes, dropped: int
+    websocket: WebSocket, lease: StreamLease, data: bytes, dropped: int
 ) -> dict[str, Any]:
     settings = settings_of(websocket)
     start = time.perf_counter()
     try:
-        async with store_of(websocket).lease(session_id, owner) as session:
+        async with lease.turn() as session:
 
             def work() -> dict[str, Any]:
                 frame = decode_frame(
