@@ -11,9 +11,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from service import metrics
 from service.auth import request_owner
-from service.deps import compute, settings_of, store_of
+from service.deps import compute, settings_of, store_of, track_encoded
 from service.errors import ApiError
-from service.images import decode_frame
 from service.schemas import ErrorOut, ForcesIn, ForcesOut, FrameOut, SessionCreate, SessionOut
 from service.sessions import Session
 
@@ -147,22 +146,11 @@ async def track_frame(
     session_id: str, request: Request, response: Response, owner: Owner, if_match: IfMatch = None
 ) -> dict[str, Any]:
     """Track the session's contour into one encoded frame (JPEG, PNG or WebP)."""
-    settings = settings_of(request)
     start = time.perf_counter()
     data, media_type = await read_image(request)
     async with store_of(request).lease(session_id, owner) as session:
         check_version(session, if_match)
-
-        def work() -> dict[str, Any]:
-            frame = decode_frame(
-                data,
-                media_type,
-                max_bytes=settings.max_frame_bytes,
-                max_pixels=settings.max_frame_pixels,
-            )
-            return session.track(frame)
-
-        result = await compute(request, work)
+        result = await track_encoded(request, session, data, media_type)
         response.headers["ETag"] = f'"{session.version}"'
     metrics.FRAMES.labels(transport="rest").inc()
     metrics.FRAME_SECONDS.labels(transport="rest").observe(time.perf_counter() - start)

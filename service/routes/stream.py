@@ -33,9 +33,8 @@ from pydantic import ValidationError
 
 from service import metrics
 from service.auth import websocket_owner
-from service.deps import compute, settings_of, store_of
+from service.deps import compute, settings_of, store_of, track_encoded
 from service.errors import ApiError
-from service.images import decode_frame
 from service.schemas import ForcesIn
 from service.store import StreamLease
 
@@ -214,21 +213,10 @@ async def _control(
 async def _frame(
     websocket: WebSocket, lease: StreamLease, data: bytes, dropped: int
 ) -> dict[str, Any]:
-    settings = settings_of(websocket)
     start = time.perf_counter()
     try:
         async with lease.turn() as session:
-
-            def work() -> dict[str, Any]:
-                frame = decode_frame(
-                    data,
-                    None,
-                    max_bytes=settings.max_frame_bytes,
-                    max_pixels=settings.max_frame_pixels,
-                )
-                return session.track(frame)
-
-            result = await compute(websocket, work)
+            result = await track_encoded(websocket, session, data, None)
     except ApiError as exc:
         if exc.status == 404:
             raise _FatalError(4404, exc.message) from None
