@@ -27,19 +27,16 @@ import argparse
 import dataclasses
 import json
 import math
-import os
-import platform
 import sys
 import time
 from collections.abc import Callable, Sequence
-from datetime import datetime
-from importlib import metadata
 from pathlib import Path
 
 import cv2
-import numpy as np
 
+import _machine
 import engine
+from _machine import load_average
 from _service_data import JpegClip, load_clips
 from _service_http import ForcesLoad, rest_forces, rest_frames
 from _service_local import LOCAL, forces_payload, local_deform_ms, run_local
@@ -58,49 +55,14 @@ REST = "REST /frames, closed loop"
 SINGLE = (LOCAL, WS, WS_PLAIN, REST)
 
 
-def version(distribution: str) -> str:
-    """An installed distribution's version (``?`` when absent)."""
-    try:
-        return metadata.version(distribution)
-    except metadata.PackageNotFoundError:
-        return "?"
-
-
-def load_average() -> str:
-    """The 1, 5 and 15 minute load averages (``?`` where unsupported)."""
-    try:
-        return ", ".join(f"{v:.2f}" for v in os.getloadavg())
-    except OSError:
-        return "?"
-
-
-def cpu_model() -> str:
-    """The CPU model name from /proc/cpuinfo, else ``platform.processor()``."""
-    try:
-        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
-    except OSError:
-        return platform.processor() or "?"
-    for line in text.splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return platform.processor() or "?"
-
-
 def machine_info() -> dict[str, str]:
     """Platform, CPU, library versions and the date."""
-    libraries = ("uvicorn", "fastapi", "websockets", "httpx")
-    return {
-        "date": datetime.now().astimezone().isoformat(timespec="seconds"),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpu": cpu_model(),
-        "cpu_count": str(os.cpu_count()),
-        "numpy": np.__version__,
-        "opencv": cv2.__version__,
-        "cv_threads": str(cv2.getNumThreads()),
-        "wrk": "installed" if wrk_path() else "absent",
-        **{name: version(name) for name in libraries},
-    }
+    return _machine.machine_info(
+        ("uvicorn", "fastapi", "websockets", "httpx"),
+        opencv=cv2.__version__,
+        cv_threads=str(cv2.getNumThreads()),
+        wrk="installed" if wrk_path() else "absent",
+    )
 
 
 def head(clip: JpegClip, count: int) -> JpegClip:

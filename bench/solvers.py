@@ -16,19 +16,17 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
-from datetime import datetime
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+import _machine
 import engine
 from _solvers_config import (
     A_MAIN,
@@ -241,29 +239,8 @@ def literal_breakdown(a: float, n_max: int = LITERAL_N_MAX, rtol: float = 1e-6) 
 def machine_info() -> dict[str, str]:
     """Platform, CPU and library versions, and the date."""
     affinity = getattr(os, "sched_getaffinity", None)
-    return {
-        "date": datetime.now().astimezone().isoformat(timespec="seconds"),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpu": cpu_model(),
-        "cpu_count": str(os.cpu_count()),
-        "usable_cpus": str(len(affinity(0))) if affinity is not None else "?",
-        "numpy": np.__version__,
-        "scipy": metadata.version("scipy"),
-        "numba": metadata.version("numba"),
-    }
-
-
-def cpu_model() -> str:
-    """The CPU model name from /proc/cpuinfo, else ``platform.processor()``."""
-    try:
-        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
-    except OSError:
-        text = ""
-    for line in text.splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return platform.processor() or "?"
+    usable = str(len(affinity(0))) if affinity is not None else "?"
+    return _machine.machine_info(("scipy", "numba"), usable_cpus=usable)
 
 
 def write_outputs(results: Results, out: Path) -> str:

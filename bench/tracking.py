@@ -31,19 +31,18 @@ for _variable in (
 import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
-import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
 from dataclasses import asdict  # noqa: E402
-from datetime import datetime  # noqa: E402
-from importlib import metadata  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
+import _machine  # noqa: E402
+from _machine import load_average  # noqa: E402
 from _tracking_data import (  # noqa: E402
     DAVIS_ROOT,
     davis_names,
@@ -141,44 +140,7 @@ def save_sheet(image: np.ndarray[Any, Any], name: str, out: Path) -> str:
 
 def machine_info() -> dict[str, str]:
     """Platform, CPU, library versions and the date."""
-    return {
-        "date": datetime.now().astimezone().isoformat(timespec="seconds"),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpu": cpu_model(),
-        "cpu_count": str(os.cpu_count()),
-        "numpy": np.__version__,
-        "opencv": cv2.__version__,
-        "skimage": version("scikit-image"),
-    }
-
-
-def load_average() -> str:
-    """The 1, 5 and 15 minute load averages (``?`` where unsupported)."""
-    try:
-        return ", ".join(f"{v:.2f}" for v in os.getloadavg())
-    except OSError:
-        return "?"
-
-
-def version(distribution: str) -> str:
-    """An installed distribution's version (``?`` when absent)."""
-    try:
-        return metadata.version(distribution)
-    except metadata.PackageNotFoundError:
-        return "?"
-
-
-def cpu_model() -> str:
-    """The CPU model name from /proc/cpuinfo, else ``platform.processor()``."""
-    try:
-        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
-    except OSError:
-        return platform.processor() or "?"
-    for line in text.splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return platform.processor() or "?"
+    return _machine.machine_info(opencv=cv2.__version__, skimage=_machine.version("scikit-image"))
 
 
 def finite(value: float) -> float | None:
