@@ -32,6 +32,18 @@ typecheck: $(STAMP)
 pytest: $(STAMP)
 	$(BIN)/python -m pytest -q
 
+## lint-deploy: hadolint on docker/Dockerfile and the deployment files' checks (tests/deploy,
+## also part of `make pytest`)
+.PHONY: lint-deploy test-container
+lint-deploy: $(STAMP)
+	$(BIN)/hadolint docker/Dockerfile
+	$(BIN)/python -m pytest -q tests/deploy
+
+## test-container: build the image with podman and run it for real (not part of `make test`;
+## needs root, podman, runc and debootstrap: see docker/test-container.sh)
+test-container: $(STAMP)
+	PYTHON=$(BIN)/python bash docker/test-container.sh
+
 ## bench: every benchmark; results land in bench/results/
 bench: bench-solvers bench-tracking bench-service
 
