@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking bench-service clean
+.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking bench-service bench-load clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -45,7 +45,7 @@ test-container: $(STAMP)
 	PYTHON=$(BIN)/python bash docker/test-container.sh
 
 ## bench: every benchmark; results land in bench/results/
-bench: bench-solvers bench-tracking bench-service
+bench: bench-solvers bench-tracking bench-service bench-load
 
 bench-solvers: $(STAMP)
 	$(BIN)/python bench/solvers.py
@@ -55,6 +55,10 @@ bench-tracking: $(STAMP)
 
 bench-service: $(STAMP)
 	$(BIN)/python bench/service.py
+
+## bench-load: concurrent WebSocket sessions on 1 and 2 replicas sharing a Redis (redis-server)
+bench-load: $(STAMP)
+	$(BIN)/python bench/load.py
 
 clean:
 	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache

@@ -21,6 +21,7 @@ from service import errors
 from service.limits import BodyLimit
 from service.routes import health, sessions, stream
 from service.settings import Settings
+from service.shutdown import StreamRegistry
 from service.store import MemoryStore, SessionStore
 
 STATIC = Path(__file__).parent / "static"
@@ -71,6 +72,8 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
         try:
             yield
         finally:
+            # graceful shutdown (service/shutdown.py): streams uvicorn left open end with 1001
+            await app.state.streams.close_all()
             sweeper.cancel()
             await app.state.store.close()
 
@@ -87,6 +90,7 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
     )
     app.state.settings = settings
     app.state.store = store or make_store(settings)
+    app.state.streams = StreamRegistry()  # open WebSocket streams (graceful shutdown)
     app.state.cpu = CapacityLimiter(settings.workers or os.cpu_count() or 1)
     errors.install(app)
     app.add_middleware(

@@ -36,6 +36,7 @@ from service.auth import websocket_owner
 from service.deps import compute, settings_of, store_of, track_encoded
 from service.errors import ApiError
 from service.schemas import ForcesIn
+from service.shutdown import Stream, streams_of
 from service.store import StreamLease
 
 router = APIRouter(tags=["stream"])
@@ -90,10 +91,11 @@ async def stream(websocket: WebSocket, session_id: str) -> None:
         await websocket.close(code=4000 + exc.status, reason=exc.message[:120])
         return
     metrics.WEBSOCKETS.inc()
+    registered = streams_of(websocket).register(websocket)
     inbox = Inbox()
     try:
         async with anyio.create_task_group() as tasks:
-            tasks.start_soon(_work, websocket, lease, inbox)
+            tasks.start_soon(_work, websocket, lease, inbox, registered)
             await _receive(websocket, inbox)
             tasks.cancel_scope.cancel()
     except* _FatalError as group:  # task groups raise exception groups
@@ -104,7 +106,10 @@ async def stream(websocket: WebSocket, session_id: str) -> None:
         pass  # the client left while a result was on its way
     finally:
         metrics.WEBSOCKETS.dec()
-        await held.__aexit__(None, None, None)  # writes through what is pending
+        try:
+            await held.__aexit__(None, None, None)  # writes through what is pending
+        finally:
+            streams_of(websocket).unregister(registered)  # after the write-through
 
 
 class _FatalError(Exception):
@@ -148,35 +153,39 @@ async def _receive(websocket: WebSocket, inbox: Inbox) -> None:
             try:
                 parsed = json.loads(text)
             except (ValueError, RecursionError):  # not JSON, or nested beyond reason
-                await websocket.send_json(
-                    error_message(ApiError(400, "bad_request", "text messages must be JSON"))
+                await _send(
+                    websocket,
+                    error_message(ApiError(400, "bad_request", "text messages must be JSON")),
                 )
                 continue
             if not isinstance(parsed, dict) or not ({"forces", "ping"} & parsed.keys()):
-                await websocket.send_json(
+                await _send(
+                    websocket,
                     error_message(
                         ApiError(422, "invalid", 'expected {"forces": [...]} or {"ping": ...}')
-                    )
+                    ),
                 )
                 continue
             if not inbox.put_control(parsed):
-                await websocket.send_json(
-                    error_message(ApiError(429, "too_many_messages", "too many pending messages"))
+                await _send(
+                    websocket,
+                    error_message(ApiError(429, "too_many_messages", "too many pending messages")),
                 )
 
 
-async def _work(websocket: WebSocket, lease: StreamLease, inbox: Inbox) -> None:
+async def _work(websocket: WebSocket, lease: StreamLease, inbox: Inbox, registered: Stream) -> None:
     """Process waiting control messages in order, then the newest frame."""
     while True:
         await inbox.ready.wait()
         inbox.ready.clear()
-        while inbox.control:
-            control = inbox.control.popleft()
-            await _send(websocket, await _control(websocket, lease, control))
-        if inbox.frame is not None:
-            data, dropped = inbox.frame, inbox.dropped
-            inbox.frame, inbox.dropped = None, 0
-            await _send(websocket, await _frame(websocket, lease, data, dropped))
+        async with registered.in_flight():  # shutdown waits for this, then closes with 1001
+            while inbox.control:
+                control = inbox.control.popleft()
+                await _send(websocket, await _control(websocket, lease, control))
+            if inbox.frame is not None:
+                data, dropped = inbox.frame, inbox.dropped
+                inbox.frame, inbox.dropped = None, 0
+                await _send(websocket, await _frame(websocket, lease, data, dropped))
 
 
 async def _control(
