@@ -21,9 +21,7 @@ for a smoke test, ``--out DIR`` for where ``load.md`` and ``load.json`` go
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import json
 import math
 import os
 import subprocess
@@ -55,6 +53,7 @@ from _load_report import (
     to_json,
 )
 from _machine import load_average, machine_info
+from _output import quick_and_out, write_results
 from _service_server import Server, cpu_seconds
 from _service_stats import Measurement
 
@@ -239,25 +238,14 @@ def run(config: Config) -> Results:
 
 def write_outputs(results: Results, out: Path) -> str:
     """Write ``load.md`` and ``load.json`` into ``out``; return the report."""
-    out.mkdir(parents=True, exist_ok=True)
     report = render(results)
-    (out / "load.md").write_text(report, encoding="utf-8")
-    text = json.dumps(to_json(results), indent=1, allow_nan=False)
-    (out / "load.json").write_text(text + "\n", encoding="utf-8")
+    write_results(out, "load", report, to_json(results))
     return report
-
-
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command line: ``--quick``, ``--out DIR``."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
-    parser.add_argument("--quick", action="store_true", help="tiny counts for smoke tests")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output directory")
-    return parser.parse_args(argv)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark, print the report, write the result files."""
-    args = parse_args(argv)
+    args = quick_and_out(__doc__, DEFAULT_OUT, argv)
     results = run(QUICK if args.quick else FULL)
     print(write_outputs(results, args.out), end="")
     log(f"wrote {args.out / 'load.md'} and load.json ({results.wall_seconds:.0f} s)")

@@ -23,9 +23,7 @@ in count and time.  Run ``python bench/service.py`` (``make bench-service``);
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import json
 import math
 import sys
 import time
@@ -37,6 +35,7 @@ import cv2
 import _machine
 import engine
 from _machine import load_average
+from _output import quick_and_out, write_results
 from _service_data import JpegClip, load_clips
 from _service_http import ForcesLoad, rest_forces, rest_frames
 from _service_local import LOCAL, forces_payload, local_deform_ms, run_local
@@ -234,25 +233,14 @@ def run(config: Config) -> Results:
 
 def write_outputs(results: Results, out: Path) -> str:
     """Write ``service.md`` and ``service.json`` into ``out``; return the report."""
-    out.mkdir(parents=True, exist_ok=True)
     report = render(results)
-    (out / "service.md").write_text(report, encoding="utf-8")
-    text = json.dumps(to_json(results), indent=1, allow_nan=False)
-    (out / "service.json").write_text(text + "\n", encoding="utf-8")
+    write_results(out, "service", report, to_json(results))
     return report
-
-
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command line: ``--quick``, ``--out DIR``."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
-    parser.add_argument("--quick", action="store_true", help="tiny counts for smoke tests")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output directory")
-    return parser.parse_args(argv)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark, print the report, write the result files."""
-    args = parse_args(argv)
+    args = quick_and_out(__doc__, DEFAULT_OUT, argv)
     results = run(QUICK if args.quick else FULL)
     print(write_outputs(results, args.out), end="")
     log(f"wrote {args.out / 'service.md'} and service.json ({results.wall_seconds:.0f} s)")
