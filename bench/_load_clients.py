@@ -22,7 +22,7 @@ import numpy as np
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import WebSocketException
 
-from _service_data import encode
+from _service_data import JpegClip, encode
 from _service_server import Server
 from _service_stats import Measurement
 from engine.geometry import mask_to_contour
@@ -32,19 +32,8 @@ RECV_TIMEOUT = 30.0
 OPEN_TIMEOUT = 20.0
 
 
-@dataclass(frozen=True, slots=True)
-class Clip:
-    """The frames every session streams: JPEG bytes in playing order, and the first contour."""
-
-    name: str
-    frames: tuple[bytes, ...]
-    nodes: list[list[float]]
-    shape: tuple[int, int]
-
-    @property
-    def mean_bytes(self) -> float:
-        """Mean encoded frame size."""
-        return float(np.mean([len(f) for f in self.frames]))
+Clip = JpegClip
+"""The frames every session streams (the service benchmark's clip type)."""
 
 
 def synthetic_clip(length: int, nodes: int, size: tuple[int, int] = (240, 320)) -> Clip:
@@ -56,7 +45,9 @@ def synthetic_clip(length: int, nodes: int, size: tuple[int, int] = (240, 320)) 
     jpeg = [encode(np.asarray(f, dtype=np.uint8)) for f in sequence.frames]
     order = [*jpeg, *jpeg[-2:0:-1]]
     contour = mask_to_contour(np.asarray(sequence.masks[0], dtype=np.uint8), nodes).tolist()
-    return Clip(f"synthetic plain {size[1]}x{size[0]}", tuple(order), contour, size)
+    return Clip(
+        f"synthetic plain {size[1]}x{size[0]}", "engine.synthetic", tuple(order), contour, size
+    )
 
 
 def cycle(clip: Clip, start: int) -> Iterator[bytes]:
