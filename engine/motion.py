@@ -1,7 +1,12 @@
 """Motion prediction between frames: pyramidal Lucas-Kanade, forward-backward
-checked, and a robust similarity fit (OpenCV).
+checked, and a robust similarity fit (OpenCV), at half resolution.
 
-Coordinates are ``[x, y]`` pixels (x = column, y = row).
+Both frames are cropped around the contour and halved (:class:`FramePair`);
+the coarse pyramid levels and the forward-backward check run on the halves
+(a quarter of the pixels), only the finest level at full resolution.
+
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV; a
+pixel's centre has integer coordinates, at full and at half resolution.
 """
 
 from __future__ import annotations
@@ -14,7 +19,10 @@ from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask
 
-__all__ = ["Motion", "estimate_motion"]
+__all__ = ["FramePair", "Motion", "estimate_motion"]
+
+CONTEXT = 64
+"""Pixels kept around the contour: more than any plausible motion between frames."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,25 +55,65 @@ class Motion:
         return Motion(np.hstack([np.eye(2), np.zeros((2, 1))]), 0.0, points)
 
 
-def _features(
-    grey: NDArray[np.uint8], nodes: NDArray[np.float64], max_features: int
-) -> NDArray[np.float32]:
-    """Corners inside (and just around) the contour, plus every fourth contour node."""
-    x0, y0, x1, y1 = _window(grey.shape, nodes, 8)
-    sub = np.ascontiguousarray(grey[y0:y1, x0:x1])
-    local = nodes - [x0, y0]
-    mask = np.asarray(
-        cv2.dilate(contour_to_mask(local, sub.shape), np.ones((7, 7), np.uint8)), np.uint8
-    )
-    corners = cv2.goodFeaturesToTrack(
-        sub, maxCorners=max_features, qualityLevel=0.01, minDistance=5, mask=mask, blockSize=5
-    )
-    pts = nodes[::4].astype(np.float32)
-    if corners is not None:
-        pts = np.vstack(
-            [pts, np.asarray(corners, np.float32).reshape(-1, 2) + np.array([x0, y0], np.float32)]
-        )
-    return pts
+@dataclass(frozen=True, slots=True)
+class FramePair:
+    """Two grey frames cropped around a contour, at full and at half resolution.
+
+    The half-resolution crops are ``cv2.INTER_AREA`` halvings: their pixel
+    ``u`` averages crop pixels ``2u`` and ``2u + 1``, so crop point ``p`` is at
+    ``p / 2 - 1/4`` there.
+
+    Attributes
+    ----------
+    origin : tuple of int
+        ``(x, y)`` of the crop's top-left pixel in the frame.
+    previous, current : numpy.ndarray
+        The crops, uint8, of equal shape (at least 1 x 1).
+    half_previous, half_current : numpy.ndarray
+        The crops halved (the crops themselves when under 2 pixels wide or high).
+    """
+
+    origin: tuple[int, int]
+    previous: NDArray[np.uint8]
+    current: NDArray[np.uint8]
+    half_previous: NDArray[np.uint8]
+    half_current: NDArray[np.uint8]
+
+    @classmethod
+    def around(
+        cls,
+        previous: NDArray[np.uint8],
+        current: NDArray[np.uint8],
+        nodes: NDArray[np.float64],
+        *,
+        margin: int = CONTEXT,
+    ) -> FramePair:
+        """Crop both grey frames to the nodes' box grown by ``margin``.
+
+        Parameters
+        ----------
+        previous, current : numpy.ndarray
+            Grey uint8 frames of equal size.
+        nodes : numpy.ndarray
+            (N, 2) ``[x, y]`` pixels, the contour in ``previous``.
+        margin : int
+            Context kept around the contour (pixels).
+        """
+        x0, y0, x1, y1 = _window(previous.shape, nodes, margin)
+        before = np.ascontiguousarray(previous[y0:y1, x0:x1])
+        after = np.ascontiguousarray(current[y0:y1, x0:x1])
+        return cls((x0, y0), before, after, _halve(before), _halve(after))
+
+    def to_half(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Frame ``[x, y]`` points to half-resolution crop coordinates."""
+        result: NDArray[np.float64] = 0.5 * (points - np.asarray(self.origin)) - 0.25
+        return result
+
+
+def _halve(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    if min(image.shape) < 2:
+        return image
+    return np.asarray(cv2.resize(image, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
 
 
 def _window(
@@ -79,18 +127,49 @@ def _window(
     return x0, y0, max(min(int(x1), w), x0 + 1), max(min(int(y1), h), y0 + 1)
 
 
+def _features(
+    grey: NDArray[np.uint8], nodes: NDArray[np.float64], max_features: int
+) -> NDArray[np.float32]:
+    """Corners inside (and just around) the contour, plus every fourth contour node.
+
+    ``grey`` and ``nodes`` at half resolution.
+    """
+    x0, y0, x1, y1 = _window(grey.shape, nodes, 4)
+    sub = np.ascontiguousarray(grey[y0:y1, x0:x1])
+    local = nodes - [x0, y0]
+    mask = np.asarray(
+        cv2.dilate(contour_to_mask(local, sub.shape), np.ones((5, 5), np.uint8)), np.uint8
+    )
+    corners = cv2.goodFeaturesToTrack(
+        sub, maxCorners=max_features, qualityLevel=0.01, minDistance=3, mask=mask, blockSize=3
+    )
+    pts = nodes[::4].astype(np.float32)
+    if corners is not None:
+        pts = np.vstack(
+            [pts, np.asarray(corners, np.float32).reshape(-1, 2) + np.array([x0, y0], np.float32)]
+        )
+    return pts
+
+
 def estimate_motion(
     previous: NDArray[np.uint8],
     current: NDArray[np.uint8],
     nodes: NDArray[np.float64],
     *,
     max_features: int = 80,
-    window: int = 15,
+    window: int = 9,
     levels: int = 3,
+    fine_window: int = 15,
     fb_threshold: float = 1.0,
     ransac_threshold: float = 2.0,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
+
+    Points: corners inside the contour and every fourth node.  Pyramidal
+    Lucas-Kanade tracks them at half resolution, forward and back (points
+    whose round trip misses by more than ``fb_threshold`` are dropped); one
+    more Lucas-Kanade level at full resolution refines the survivors, and
+    RANSAC fits the similarity.
 
     Parameters
     ----------
@@ -101,47 +180,65 @@ def estimate_motion(
     max_features : int
         Corners sought inside the contour (besides the nodes themselves).
     window, levels : int
-        Lucas-Kanade window side and pyramid levels.
+        Lucas-Kanade window side and pyramid levels at half resolution (the
+        defaults follow displacements of about 70 frame pixels).
+    fine_window : int
+        Lucas-Kanade window side of the full-resolution refinement.
     fb_threshold : float
-        Largest forward-backward error (pixels) of a kept point.
+        Largest forward-backward error (frame pixels) of a kept point.
     ransac_threshold : float
-        RANSAC reprojection threshold (pixels).
+        RANSAC reprojection threshold (frame pixels).
 
     Returns
     -------
     Motion
         Identity with zero support when too few points survive.
     """
-    # Work on the object's surroundings only: 64 pixels of context cover any
-    # plausible motion between frames (the pyramid reaches window * 2^levels).
-    x0, y0, x1, y1 = _window(previous.shape, nodes, min(64, window * (1 << levels)))
-    previous, current = previous[y0:y1, x0:x1], current[y0:y1, x0:x1]
-    origin = np.array([x0, y0], dtype=np.float64)
-    pts = _features(previous, nodes - origin, max_features)
-    h, w = previous.shape
+    frames = FramePair.around(previous, current, nodes)
+    before, after = frames.half_previous, frames.half_current
+    h, w = before.shape
+    if min(frames.previous.shape) < 4:
+        return Motion.identity()
+    pts = _features(before, frames.to_half(nodes), max_features)
     inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
     pts = pts[inside]
     if len(pts) < 3:
         return Motion.identity(len(pts))
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
 
-    size = (window, window)
-
-    def flow(
-        a: NDArray[np.uint8], b: NDArray[np.uint8], p: NDArray[np.float32]
-    ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
+    def track(
+        a: NDArray[np.uint8],
+        b: NDArray[np.uint8],
+        p: NDArray[np.float32],
+        guess: NDArray[np.float32],
+        side: int,
+        top: int,
+    ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
         moved, status, _ = cv2.calcOpticalFlowPyrLK(
-            a, b, p, p.copy(), winSize=size, maxLevel=levels, criteria=criteria
+            a,
+            b,
+            p,
+            guess.copy(),
+            winSize=(side, side),
+            maxLevel=top,
+            criteria=criteria,
+            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
         )
-        return np.asarray(moved, np.float32).reshape(-1, 2), np.asarray(status, np.uint8)
+        return np.asarray(moved, np.float32).reshape(-1, 2), np.asarray(status).ravel() == 1
 
-    fwd, st1 = flow(previous, current, pts)
-    back, st2 = flow(current, previous, fwd)
-    fb = np.linalg.norm(back - pts, axis=1)
-    good = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < fb_threshold)
+    fwd, ok_fwd = track(before, after, pts, pts, window, levels)
+    back, ok_back = track(after, before, fwd, fwd, window, levels)
+    # half-resolution pixels are two frame pixels wide
+    good = ok_fwd & ok_back & (np.linalg.norm(back - pts, axis=1) < 0.5 * fb_threshold)
     if good.sum() < 3:
         return Motion.identity(len(pts))
-    src, dst = pts[good], fwd[good]
+    # the finest level, at full resolution (crop coordinates: p = 2u + 1/2)
+    src = 2.0 * pts[good] + np.float32(0.5)
+    guess = 2.0 * fwd[good] + np.float32(0.5)
+    dst, ok_fine = track(frames.previous, frames.current, src, guess, fine_window, 0)
+    # a refinement that runs off (lost texture at full resolution) keeps the guess
+    ok_fine &= np.linalg.norm(dst - guess, axis=1) < 2.0
+    dst = np.where(ok_fine[:, None], dst, guess)
     matrix, inliers = cv2.estimateAffinePartial2D(
         src, dst, method=cv2.RANSAC, ransacReprojThreshold=ransac_threshold, maxIters=500
     )
@@ -151,120 +248,8 @@ def estimate_motion(
         support = float(good.mean()) * 0.5
     else:
         support = float(inliers.sum()) / len(pts)
-    matrix = np.asarray(matrix, dtype=np.float64)
+    fitted: NDArray[np.float64] = np.asarray(matrix, dtype=np.float64)
     # back to frame coordinates: T(o) M T(-o)
-    matrix[:, 2] += origin - matrix[:, :2] @ origin
-    return Motion(matrix, support, len(pts))
-
-
-@dataclass(frozen=True, slots=True)
-class FlowField:
-    """Dense optical flow around a contour, computed at half resolution.
-
-    Attributes
-    ----------
-    origin : tuple of int
-        ``(x, y)`` of the crop's top-left pixel in the frame.
-    flow : numpy.ndarray
-        (h, w, 2) float32 displacement of the half-resolution crop, in
-        half-resolution pixels.
-    """
-
-    origin: tuple[int, int]
-    flow: NDArray[np.float32]
-
-    def at(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Displacement (frame pixels) at ``[x, y]`` frame points, bilinear."""
-        where = (0.5 * (points - self.origin)).astype(np.float32).reshape(-1, 1, 2)
-        sampled = [
-            cv2.remap(
-                np.ascontiguousarray(self.flow[..., k]),
-                where[..., 0],
-                where[..., 1],
-                cv2.INTER_LINEAR,
-                borderMode=cv2.BORDER_REPLICATE,
-            ).reshape(-1)
-            for k in (0, 1)
-        ]
-        result = 2.0 * np.stack(sampled, axis=1).astype(np.float64)
-        return np.where(np.isfinite(result), result, 0.0)
-
-
-def dense_flow(
-    previous: NDArray[np.uint8],
-    current: NDArray[np.uint8],
-    nodes: NDArray[np.float64],
-    *,
-    margin: int = 48,
-) -> FlowField | None:
-    """OpenCV DIS optical flow (ultrafast preset) on the contour's surroundings.
-
-    Parameters
-    ----------
-    previous, current : numpy.ndarray
-        Grey uint8 frames of equal size.
-    nodes : numpy.ndarray
-        (N, 2) ``[x, y]`` contour in ``previous``.
-    margin : int
-        Context kept around the contour (pixels).
-
-    Returns
-    -------
-    FlowField or None
-        None when the crop is empty.
-    """
-    x0, y0, x1, y1 = _window(previous.shape, nodes, margin)
-    a = np.ascontiguousarray(previous[y0:y1, x0:x1])
-    b = np.ascontiguousarray(current[y0:y1, x0:x1])
-    if min(a.shape) < 2:
-        return None
-    # Half resolution is plenty for a flow that the chain smooths anyway.  DIS
-    # needs at least 32 x 32 pixels (smaller or very flat inputs crash it):
-    # pad by replication and crop the flow back.
-    half_a = cv2.resize(a, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    half_b = cv2.resize(b, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    h, w = half_a.shape
-    pad_y, pad_x = max(0, 32 - h), max(0, 32 - w)
-    if pad_y or pad_x:
-        half_a = cv2.copyMakeBorder(half_a, 0, pad_y, 0, pad_x, cv2.BORDER_REPLICATE)
-        half_b = cv2.copyMakeBorder(half_b, 0, pad_y, 0, pad_x, cv2.BORDER_REPLICATE)
-    dis = cv2.DISOpticalFlow.create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
-    flow = np.asarray(
-        dis.calc(half_a, half_b, np.zeros((*half_a.shape, 2), np.float32)), dtype=np.float32
-    )[:h, :w]
-    return FlowField((x0, y0), np.ascontiguousarray(flow))
-
-
-def node_flow(
-    previous: NDArray[np.uint8],
-    current: NDArray[np.uint8],
-    nodes: NDArray[np.float64],
-    inward: NDArray[np.float64],
-    *,
-    depth: float = 3.0,
-    margin: int = 48,
-) -> NDArray[np.float64]:
-    """Dense optical flow (:func:`dense_flow`) read ``depth`` pixels inside each node.
-
-    Parameters
-    ----------
-    previous, current : numpy.ndarray
-        Grey uint8 frames of equal size.
-    nodes : numpy.ndarray
-        (N, 2) ``[x, y]`` contour in ``previous``.
-    inward : numpy.ndarray
-        (N, 2) unit vectors into the object.
-    depth : float
-        Sampling depth inside the object (pixels).
-    margin : int
-        Context kept around the contour for the flow computation (pixels).
-
-    Returns
-    -------
-    numpy.ndarray
-        (N, 2) displacement of each node from ``previous`` to ``current``.
-    """
-    field = dense_flow(previous, current, nodes, margin=margin)
-    if field is None:
-        return np.zeros_like(nodes)
-    return field.at(nodes + depth * inward)
+    origin = np.asarray(frames.origin, dtype=np.float64)
+    fitted[:, 2] += origin - fitted[:, :2] @ origin
+    return Motion(fitted, support, len(pts))

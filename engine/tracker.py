@@ -34,9 +34,10 @@ from numpy.typing import ArrayLike, NDArray
 from engine._state_codec import pack_histogram, pack_image, unpack_histogram, unpack_image
 from engine.appearance import AppearanceModel
 from engine.deform import deform
+from engine.flow import node_flow
 from engine.geometry import as_nodes, resample
 from engine.image_forces import Maps, outward_normals
-from engine.motion import Motion, estimate_motion, node_flow
+from engine.motion import Motion, estimate_motion
 from engine.refinement import LocatedProbability, refine, roi_box, valid_contour
 from engine.tracker_options import TrackerOptions
 
