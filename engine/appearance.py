@@ -23,10 +23,16 @@ _GREY_BITS = 5  # 32 grey levels
 
 def quantise(image: NDArray[np.uint8]) -> NDArray[np.uint16]:
     """Histogram bin of every pixel (BGR: 16^3 bins; grey: 32 bins), one compiled pass."""
-    from engine._kernels import colour_bins
+    from engine._image_kernels import colour_bins
 
-    bins: NDArray[np.uint16] = colour_bins(np.ascontiguousarray(image), _GREY_BITS, _COLOUR_BITS)
+    bins: NDArray[np.uint16] = colour_bins(_three_d(image), _GREY_BITS, _COLOUR_BITS)
     return bins
+
+
+def _three_d(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A contiguous H x W x C view or copy (grey images get C = 1), for the kernels."""
+    arr = np.ascontiguousarray(image, dtype=np.uint8)
+    return arr[..., None] if arr.ndim == 2 else arr
 
 
 def bin_count(image: NDArray[np.uint8]) -> int:
@@ -86,10 +92,15 @@ class AppearanceModel:
         self, image: NDArray[np.uint8], table: NDArray[np.float32] | None = None
     ) -> NDArray[np.float32]:
         """Per-pixel p(object) of an image (or a region of one), float32 in [0, 1]."""
+        from engine._image_kernels import colour_lookup
+
         lut = self.table() if table is None else table
         if bin_count(image) != len(lut):
             return np.full(image.shape[:2], 0.5, dtype=np.float32)
-        return lut[quantise(image)]
+        result: NDArray[np.float32] = colour_lookup(
+            _three_d(image), _GREY_BITS, _COLOUR_BITS, np.ascontiguousarray(lut)
+        )
+        return result
 
     def separation(self) -> float:
         """How distinct the two histograms are: 1 - Bhattacharyya coefficient."""

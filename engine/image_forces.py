@@ -22,9 +22,14 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import polygon_area
-
-__all__ = ["BoundaryEvidence", "Maps", "edge_map", "find_boundary", "outward_normals"]
+__all__ = [
+    "BoundaryEvidence",
+    "Maps",
+    "boundary_pull",
+    "edge_map",
+    "find_boundary",
+    "outward_normals",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,30 +67,29 @@ def edge_map(grey: NDArray[np.uint8], sigma: float = 1.0) -> NDArray[np.float32]
     paths can differ in the last bit with the memory alignment of a crop,
     and tracking should be exactly repeatable.
     """
+    from engine._image_kernels import scale_and_clip, sobel_magnitude
+
     image = np.ascontiguousarray(grey, dtype=np.float32)
     smooth = cv2.GaussianBlur(image, (0, 0), sigma) if sigma > 0 else image
-    gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
-    mag = np.asarray(cv2.magnitude(gx, gy), dtype=np.float32)
+    mag: NDArray[np.float32] = sobel_magnitude(np.ascontiguousarray(smooth, dtype=np.float32))
     sample = mag[::3, ::3].ravel()  # a robust 95th percentile, cheaply
     k = int(0.95 * (sample.size - 1))
     scale = float(np.partition(sample, k)[k]) if sample.size else 0.0
     scale = max(scale, 32.0)  # about 8 grey levels per pixel: weaker is noise
-    return np.asarray(np.minimum(mag / scale, 1.0), dtype=np.float32)
+    scale_and_clip(mag, 1.0 / scale)
+    return mag
 
 
 def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Unit normals of a closed contour pointing out of its interior."""
-    tangent = np.empty_like(nodes)
-    tangent[1:-1] = nodes[2:] - nodes[:-2]
-    tangent[0] = nodes[1] - nodes[-1]
-    tangent[-1] = nodes[0] - nodes[-2]
-    length = np.hypot(tangent[:, 0], tangent[:, 1])
-    tangent = tangent / np.maximum(length, 1e-9)[:, None]
-    normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
-    # In image axes (y down) a clockwise-on-screen contour has positive shoelace
-    # area, and (t_y, -t_x) points out of it.
-    result: NDArray[np.float64] = normal if polygon_area(nodes) >= 0 else -normal
+    """Unit normals of a closed contour pointing out of its interior.
+
+    The normal of node i is perpendicular to ``nodes[i + 1] - nodes[i - 1]``.
+    In image axes (y down) a clockwise-on-screen contour has positive
+    shoelace area, and (t_y, -t_x) points out of it.
+    """
+    from engine._image_kernels import outward_normals as normals
+
+    result: NDArray[np.float64] = normals(np.ascontiguousarray(nodes, dtype=np.float64))
     return result
 
 
@@ -119,7 +123,7 @@ def find_boundary(
     BoundaryEvidence
         Offsets in pixels (positive = outward) and strengths in [0, 1].
     """
-    from engine._kernels import boundary_search
+    from engine._image_kernels import boundary_search
 
     local = np.ascontiguousarray(nodes - np.asarray(maps.origin, dtype=np.float64))
     offset = np.empty(len(nodes))
@@ -137,3 +141,49 @@ def find_boundary(
         strength,
     )
     return BoundaryEvidence(offset, strength, float(contrast))
+
+
+def boundary_pull(
+    maps: Maps,
+    nodes: NDArray[np.float64],
+    radius: int,
+    *,
+    region_weight: float = 1.0,
+    edge_weight: float = 0.5,
+    distance_penalty: float = 0.15,
+) -> tuple[NDArray[np.float64], float]:
+    """:func:`find_boundary` along the :func:`outward_normals`, as forces on the nodes.
+
+    Parameters
+    ----------
+    maps : Maps
+        Cue maps of the frame.
+    nodes : numpy.ndarray
+        (N, 2) ``[x, y]`` nodes of a closed contour.
+    radius : int
+        Search distance in pixels on each side.
+    region_weight, edge_weight, distance_penalty : float
+        As for :func:`find_boundary`.
+
+    Returns
+    -------
+    pull : numpy.ndarray
+        (N, 2) ``strength * offset * normal`` per node, pixels.
+    contrast : float
+        The boundary evidence of :class:`BoundaryEvidence`.
+    """
+    from engine._image_kernels import contour_pull
+
+    local = np.ascontiguousarray(nodes - np.asarray(maps.origin, dtype=np.float64))
+    pull = np.empty_like(local)
+    contrast = contour_pull(
+        np.ascontiguousarray(maps.probability, dtype=np.float32),
+        np.ascontiguousarray(maps.edges, dtype=np.float32),
+        local,
+        int(radius),
+        float(region_weight),
+        float(edge_weight),
+        float(distance_penalty),
+        pull,
+    )
+    return pull, float(contrast)

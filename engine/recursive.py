@@ -100,14 +100,23 @@ def warm_up() -> None:
     Call once at start-up in latency-sensitive programs so that the first
     deformation or tracked frame does not pay the compilation.
     """
-    from engine import _kernels
+    from engine import _image_kernels, _kernels
 
     dummy: Any = np.zeros((1, 3, 2))
     solve_exact(dummy, 1.0, True)
     solve_exact(dummy, 1.0, False)
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     _kernels.polyline_crosses(square, True)
-    _kernels.colour_bins(np.zeros((2, 2, 3), np.uint8), 5, 4)
-    _kernels.colour_bins(np.zeros((2, 2), np.uint8), 5, 4)
+    table = np.zeros(4096, np.float32)
+    for image in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):
+        _image_kernels.colour_bins(image, 5, 4)
+        _image_kernels.colour_lookup(image, 5, 4, table)
     maps = np.zeros((4, 4), np.float32)
-    _kernels.boundary_search(maps, maps, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4))
+    _image_kernels.scale_and_clip(_image_kernels.sobel_magnitude(maps), 1.0)
+    _image_kernels.occluded(
+        maps, np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint8), np.zeros((2, 3)), 0.35, 166
+    )
+    _image_kernels.boundary_search(
+        maps, maps, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4)
+    )
+    _image_kernels.contour_pull(maps, maps, square, 1, 1.0, 0.5, 0.1, np.empty((4, 2)))

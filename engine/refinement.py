@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from engine.appearance import AppearanceModel
 from engine.deform import deform
 from engine.geometry import contour_to_mask, polygon_area, resample, self_intersects
-from engine.image_forces import Maps, edge_map, find_boundary, outward_normals
+from engine.image_forces import Maps, boundary_pull, edge_map
 from engine.tracker_options import TrackerOptions
 
 __all__ = [
@@ -199,6 +199,8 @@ def unoccluded(
         object goes on under the occluder), for the next frame.
         Both are ``maps`` itself when no pixel is covered.
     """
+    from engine._image_kernels import occluded
+
     if previous is None:
         return maps, maps
     motion, rest = silhouette
@@ -211,25 +213,25 @@ def unoccluded(
     inverse = np.linalg.inv(a)
     shift = np.array([[1.0, 0.0, ox], [0.0, 1.0, oy], [0.0, 0.0, 1.0]])
     back = np.array([[1.0, 0.0, -px], [0.0, 1.0, -py], [0.0, 0.0, 1.0]])
-    m = (back @ inverse @ shift)[:2]
-    was = cv2.warpAffine(
-        was_prob,
-        m,
-        (w, h),
-        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=128,
-    )
+    m = np.ascontiguousarray((back @ inverse @ shift)[:2])
     near = np.ones((7, 7), np.uint8)  # three pixels of slack at the rim
-    inside = cv2.dilate(contour_to_mask(rest - [ox, oy], (h, w)), near) > 0
-    covered = inside & (was > 166) & (maps.probability < 0.35)
-    if not covered.any():
+    inside = np.asarray(cv2.dilate(contour_to_mask(rest - [ox, oy], (h, w)), near), np.uint8)
+    # covered: inside, background-like now (p < 0.35), object-like before (> 166 / 255)
+    where, was = occluded(
+        np.ascontiguousarray(maps.probability, dtype=np.float32),
+        inside,
+        np.ascontiguousarray(was_prob, dtype=np.uint8),
+        m,
+        0.35,
+        166,
+    )
+    if len(where) == 0:
         return maps, maps
     prob = maps.probability.copy()
-    prob[covered] = 0.5
+    prob.flat[where] = 0.5
     # what the next frame remembers: the object goes on under the occluder
     memory = maps.probability.copy()
-    memory[covered] = was[covered] / 255.0
+    memory.flat[where] = was
     return Maps(maps.origin, prob, maps.edges), Maps(maps.origin, memory, maps.edges)
 
 
@@ -288,18 +290,14 @@ def refine(
     contrast = 0.0
     for it in range(1, options.iterations + 1):
         radius = max(3, round(options.search_radius * (1.0 - (it - 1) / options.iterations)))
-        normals = outward_normals(x)
-        ev = find_boundary(
+        pull, contrast = boundary_pull(
             maps,
             x,
-            normals,
             radius,
             region_weight=options.region_weight,
             edge_weight=options.edge_weight,
             distance_penalty=options.distance_penalty,
         )
-        contrast = ev.contrast
-        pull = (ev.strength * ev.offset)[:, None] * normals
         # fixed point: K (X - X0) = pull, the chain bends away from the
         # predicted shape only as far as the image forces pay for it
         forces = (x - rest) + pull
