@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from engine._validation import raise_non_finite
 from engine.green import ChainConstants
 
-__all__ = ["solve_exact", "warm_up"]
+__all__ = ["kernel_arguments", "solve_exact", "warm_up"]
 
 # Terms of the start-value sums are dropped once their total weight is below
 # this fraction of the largest one: far below float64 rounding.
@@ -50,6 +50,13 @@ def head_terms(c: ChainConstants, n: int) -> int:
     # r^L / (1 - r) <= _DROP  <=>  L >= ln(_DROP (1 - r)) / ln r, with 1 - r = 2/(s+1)
     needed = math.log(_DROP * 2.0 / (c.s + 1.0)) / c.log_r
     return int(min(n, max(1.0, math.ceil(needed) + 1)))
+
+
+def kernel_arguments(a: float, n: int, closed: bool) -> tuple[float, float, float, float, int]:
+    """The solver kernel's constants ``(r, 1/s, r^N, 1/(1 - r^period), head)`` for N nodes."""
+    c = ChainConstants.of(a)
+    period = n if closed else 2 * n
+    return c.r, 1.0 / c.s, c.power(n), 1.0 / c.one_minus_power(period), head_terms(c, n)
 
 
 def solve_exact(forces: NDArray[np.float64], a: float, closed: bool) -> NDArray[np.float64]:
@@ -74,20 +81,9 @@ def solve_exact(forces: NDArray[np.float64], a: float, closed: bool) -> NDArray[
     ValueError
         If a force is not finite or the displacement overflows float64.
     """
-    c = ChainConstants.of(a)
-    n = forces.shape[1]
-    period = n if closed else 2 * n
+    r, inv_s, r_n, inv_den, head = kernel_arguments(a, forces.shape[1], closed)
     out = np.empty_like(forces)
-    ok = _kernel()(
-        forces,
-        c.r,
-        1.0 / c.s,
-        closed,
-        c.power(n),
-        1.0 / c.one_minus_power(period),
-        head_terms(c, n),
-        out,
-    )
+    ok = _kernel()(forces, r, inv_s, closed, r_n, inv_den, head, out)
     if not ok:
         raise_non_finite(forces)
         raise ValueError("forces are too large: the displacements overflow float64")
@@ -120,3 +116,16 @@ def warm_up() -> None:
         maps, maps, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4)
     )
     _image_kernels.contour_pull(maps, maps, square, 1, 1.0, 0.5, 0.1, np.empty((4, 2)))
+    from engine._refine_kernel import refine_chain
+
+    refine_chain(
+        maps,
+        maps,
+        np.zeros(2),
+        square,
+        np.ones(2, np.int64),
+        np.ones(3),
+        0.1,
+        np.asarray(kernel_arguments(1.0, 4, True), np.float64),
+        np.empty((4, 2)),
+    )

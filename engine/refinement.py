@@ -19,9 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.appearance import AppearanceModel
-from engine.deform import deform
 from engine.geometry import contour_to_mask, polygon_area, resample, self_intersects
-from engine.image_forces import Maps, boundary_pull, edge_map
+from engine.image_forces import Maps, edge_map
+from engine.recursive import kernel_arguments
 from engine.tracker_options import TrackerOptions
 
 __all__ = [
@@ -248,8 +248,10 @@ def refine(
 ) -> Refinement:
     """Equilibrium of the chain around the predicted shape under image forces.
 
-    Iterates X = X0 + U with (I + K) U = F (paper eq. 13-16,
-    :func:`engine.deform`), where X0 = ``rest`` and F = (X - X0) + pull: the
+    Iterates X = X0 + U with (I + K) U = F (paper eq. 13-16, solved by the
+    exact O(N) recursions of :func:`engine.deform`, compiled together with
+    the boundary search in :mod:`engine._refine_kernel`), where X0 =
+    ``rest`` and F = (X - X0) + pull: the
     fixed point K (X - X0) = pull bends the chain away from the predicted
     shape only as far as the image forces pay for it.  The search radius
     shrinks from :attr:`TrackerOptions.search_radius` to 3 pixels.
@@ -284,31 +286,22 @@ def refine(
     remembered = maps
     if silhouette is not None:
         maps, remembered = unoccluded(maps, previous_probability, silhouette)
-    x = rest
-    converged = False
-    it = 0
-    contrast = 0.0
-    for it in range(1, options.iterations + 1):
-        radius = max(3, round(options.search_radius * (1.0 - (it - 1) / options.iterations)))
-        pull, contrast = boundary_pull(
-            maps,
-            x,
-            radius,
-            region_weight=options.region_weight,
-            edge_weight=options.edge_weight,
-            distance_penalty=options.distance_penalty,
-        )
-        # fixed point: K (X - X0) = pull, the chain bends away from the
-        # predicted shape only as far as the image forces pay for it
-        forces = (x - rest) + pull
-        candidate = rest + deform(forces, options.stiffness)
-        if not np.isfinite(candidate).all():
-            break
-        moved = float(np.abs(candidate - x).max())
-        x = candidate
-        if moved < options.tolerance:
-            converged = True
-            break
+    from engine._refine_kernel import refine_chain
+
+    steps = options.iterations
+    radii = [max(3, round(options.search_radius * (1.0 - k / steps))) for k in range(steps)]
+    x = np.empty_like(rest)
+    it, converged, contrast = refine_chain(
+        np.ascontiguousarray(maps.probability, dtype=np.float32),
+        np.ascontiguousarray(maps.edges, dtype=np.float32),
+        np.asarray(maps.origin, dtype=np.float64),
+        np.ascontiguousarray(rest, dtype=np.float64),
+        np.asarray(radii, dtype=np.int64),
+        np.array([options.region_weight, options.edge_weight, options.distance_penalty]),
+        options.tolerance,
+        np.asarray(kernel_arguments(options.stiffness, len(rest), True), dtype=np.float64),
+        x,
+    )
     out = resample(x, len(x))
     if not valid_contour(out, grey.shape, previous_nodes):
         if valid_contour(rest, grey.shape, previous_nodes, check_crossing=False):
