@@ -196,6 +196,7 @@ def _bilinear(image: NDArray[np.float32], x: float, y: float) -> float:
 def boundary_search(
     prob: NDArray[np.float32],
     edges: NDArray[np.float32],
+    edge_step: int,
     nodes: NDArray[np.float64],
     normals: NDArray[np.float64],
     radius: int,
@@ -207,9 +208,14 @@ def boundary_search(
 ) -> float:
     """Per-node best object-to-background split along the normal (image_forces).
 
-    ``nodes`` are in the maps' pixel coordinates.  Fills ``offset`` and
-    ``strength``; returns the mean inside-minus-outside probability.
+    ``nodes`` are in the maps' pixel coordinates; ``edges`` has one pixel
+    per ``edge_step`` (1 or 2) of them (see ``Maps.edge_step``).  Fills
+    ``offset`` and ``strength``; returns the mean inside-minus-outside
+    probability.
     """
+    # edge pixel u covers map pixels step u .. step u + step - 1
+    to_edge = 1.0 / edge_step
+    edge_shift = 0.5 / edge_step - 0.5
     k = 2 * radius + 1
     q = np.empty(k)
     e = np.empty(k)
@@ -223,7 +229,7 @@ def boundary_search(
             x = nodes[n, 0] + step * normals[n, 0]
             y = nodes[n, 1] + step * normals[n, 1]
             p = _bilinear(prob, x, y)
-            e[j] = _bilinear(edges, x, y)
+            e[j] = _bilinear(edges, x * to_edge + edge_shift, y * to_edge + edge_shift)
             q[j] = p - 0.5
             total += q[j]
             if j <= radius:
@@ -273,6 +279,7 @@ def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
 def contour_pull(
     prob: NDArray[np.float32],
     edges: NDArray[np.float32],
+    edge_step: int,
     nodes: NDArray[np.float64],
     radius: int,
     region_weight: float,
@@ -291,6 +298,7 @@ def contour_pull(
     contrast = boundary_search(
         prob,
         edges,
+        edge_step,
         nodes,
         normals,
         radius,

@@ -24,6 +24,7 @@ from engine._kernels import solve_chain
 def refine_chain(
     prob: NDArray[np.float32],
     edges: NDArray[np.float32],
+    edge_step: int,
     origin: NDArray[np.float64],
     rest: NDArray[np.float64],
     radii: NDArray[np.int64],
@@ -38,6 +39,8 @@ def refine_chain(
     ----------
     prob, edges : numpy.ndarray
         The cue maps (float32), their pixel (0, 0) at frame point ``origin``.
+    edge_step : int
+        ``Maps.edge_step``: 2 when ``edges`` is at half resolution.
     origin : numpy.ndarray
         ``[x, y]`` of the maps' top-left pixel in the frame.
     rest : numpy.ndarray
@@ -77,7 +80,7 @@ def refine_chain(
             local[i, 0] = x[i, 0] - origin[0]
             local[i, 1] = x[i, 1] - origin[1]
         contrast = contour_pull(
-            prob, edges, local, radii[k], weights[0], weights[1], weights[2], pull
+            prob, edges, edge_step, local, radii[k], weights[0], weights[1], weights[2], pull
         )
         # fixed point: K (X - X0) = pull, the chain bends away from the
         # predicted shape only as far as the image forces pay for it

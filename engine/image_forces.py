@@ -44,11 +44,20 @@ class Maps:
         float32 p(object) per pixel.
     edges : numpy.ndarray
         float32 gradient magnitude scaled to about [0, 1].
+    edge_step : int
+        1: ``edges`` is on the grid of ``probability``; 2: at half its
+        resolution, edge pixel ``u`` covering pixels ``2u`` and ``2u + 1``
+        (a ``cv2.INTER_AREA`` halving).
     """
 
     origin: tuple[int, int]
     probability: NDArray[np.float32]
     edges: NDArray[np.float32]
+    edge_step: int = 1
+
+    def __post_init__(self) -> None:
+        if self.edge_step not in (1, 2):
+            raise ValueError(f"edge_step must be 1 or 2; got {self.edge_step!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,6 +140,7 @@ def find_boundary(
     contrast = boundary_search(
         np.ascontiguousarray(maps.probability, dtype=np.float32),
         np.ascontiguousarray(maps.edges, dtype=np.float32),
+        maps.edge_step,
         local,
         np.ascontiguousarray(normals, dtype=np.float64),
         int(radius),
@@ -179,6 +189,7 @@ def boundary_pull(
     contrast = contour_pull(
         np.ascontiguousarray(maps.probability, dtype=np.float32),
         np.ascontiguousarray(maps.edges, dtype=np.float32),
+        maps.edge_step,
         local,
         int(radius),
         float(region_weight),

@@ -235,7 +235,23 @@ def estimate_motion(
     # the finest level, at full resolution (crop coordinates: p = 2u + 1/2)
     src = 2.0 * pts[good] + np.float32(0.5)
     guess = 2.0 * fwd[good] + np.float32(0.5)
-    dst, ok_fine = track(frames.previous, frames.current, src, guess, fine_window, 0)
+    # on the points' surroundings only: the gradients are computed over the whole image
+    both = np.vstack([src, guess])
+    reach = fine_window // 2 + 2
+    h_full, w_full = frames.previous.shape
+    x0, y0 = (max(int(v) - reach, 0) for v in np.floor(both.min(axis=0)))
+    x1, y1 = (int(v) + reach + 1 for v in np.ceil(both.max(axis=0)))
+    x1, y1 = min(max(x1, x0 + 1), w_full), min(max(y1, y0 + 1), h_full)
+    corner = np.array([x0, y0], np.float32)
+    dst, ok_fine = track(
+        np.ascontiguousarray(frames.previous[y0:y1, x0:x1]),
+        np.ascontiguousarray(frames.current[y0:y1, x0:x1]),
+        src - corner,
+        guess - corner,
+        fine_window,
+        0,
+    )
+    dst += corner
     # a refinement that runs off (lost texture at full resolution) keeps the guess
     ok_fine &= np.linalg.norm(dst - guess, axis=1) < 2.0
     dst = np.where(ok_fine[:, None], dst, guess)

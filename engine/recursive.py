@@ -113,14 +113,15 @@ def warm_up() -> None:
         maps, np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint8), np.zeros((2, 3)), 0.35, 166
     )
     _image_kernels.boundary_search(
-        maps, maps, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4)
+        maps, maps, 1, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4)
     )
-    _image_kernels.contour_pull(maps, maps, square, 1, 1.0, 0.5, 0.1, np.empty((4, 2)))
+    _image_kernels.contour_pull(maps, maps, 1, square, 1, 1.0, 0.5, 0.1, np.empty((4, 2)))
     from engine._refine_kernel import refine_chain
 
     refine_chain(
         maps,
         maps,
+        2,
         np.zeros(2),
         square,
         np.ones(2, np.int64),

@@ -160,11 +160,16 @@ def cue_maps(
     Maps
     """
     origin, (x0, y0, x1, y1) = roi_box(grey.shape, nodes, search_radius)
-    return Maps(
-        origin,
-        model.probability(image[y0:y1, x0:x1]),
-        edge_map(grey[y0:y1, x0:x1]),
+    region = grey[y0:y1, x0:x1]
+    probability = model.probability(image[y0:y1, x0:x1])
+    if min(region.shape) < 8:
+        return Maps(origin, probability, edge_map(region))
+    # edges at half resolution: the halving smooths as much as the Gaussian
+    # of the full-resolution map did, at a quarter of the pixels
+    half = np.asarray(
+        cv2.resize(region, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA), np.uint8
     )
+    return Maps(origin, probability, edge_map(half, sigma=0.0), edge_step=2)
 
 
 def unoccluded(
@@ -232,7 +237,10 @@ def unoccluded(
     # what the next frame remembers: the object goes on under the occluder
     memory = maps.probability.copy()
     memory.flat[where] = was
-    return Maps(maps.origin, prob, maps.edges), Maps(maps.origin, memory, maps.edges)
+    return (
+        Maps(maps.origin, prob, maps.edges, maps.edge_step),
+        Maps(maps.origin, memory, maps.edges, maps.edge_step),
+    )
 
 
 def refine(
@@ -294,6 +302,7 @@ def refine(
     it, converged, contrast = refine_chain(
         np.ascontiguousarray(maps.probability, dtype=np.float32),
         np.ascontiguousarray(maps.edges, dtype=np.float32),
+        maps.edge_step,
         np.asarray(maps.origin, dtype=np.float64),
         np.ascontiguousarray(rest, dtype=np.float64),
         np.asarray(radii, dtype=np.int64),

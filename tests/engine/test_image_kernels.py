@@ -145,3 +145,23 @@ def test_outward_normals_match_the_central_difference_formula() -> None:
         nodes[:, 0] * np.roll(nodes[:, 1], -1) - nodes[:, 1] * np.roll(nodes[:, 0], -1)
     )
     np.testing.assert_allclose(outward_normals(nodes), normal if area >= 0 else -normal, atol=1e-12)
+
+
+def test_half_resolution_edges_are_sampled_where_they_belong() -> None:
+    # bilinear sampling reproduces a linear ramp exactly, on either grid
+    h, w = 40, 60
+    prob = np.asarray(np.tile(np.linspace(0.0, 1.0, w, dtype=np.float32), (h, 1)))
+    ramp_full = np.asarray(np.tile(np.arange(w, dtype=np.float32) / w, (h, 1)), np.float32)
+    u = np.arange(w // 2, dtype=np.float32)
+    ramp_half = np.asarray(np.tile((2.0 * u + 0.5) / w, (h // 2, 1)), dtype=np.float32)
+    nodes = circle_nodes((30.0, 20.0), 9.0, 24)
+    full = find_boundary(Maps((0, 0), prob, ramp_full), nodes, outward_normals(nodes), 6)
+    half = find_boundary(Maps((0, 0), prob, ramp_half, 2), nodes, outward_normals(nodes), 6)
+    np.testing.assert_allclose(half.offset, full.offset)
+    np.testing.assert_allclose(half.strength, full.strength, atol=1e-6)
+
+
+def test_maps_reject_an_unknown_edge_step() -> None:
+    plane = np.zeros((4, 4), np.float32)
+    with pytest.raises(ValueError, match="edge_step"):
+        Maps((0, 0), plane, plane, 3)

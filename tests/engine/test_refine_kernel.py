@@ -69,6 +69,7 @@ def test_compiled_loop_equals_the_python_loop(
     result = refine_chain(
         maps.probability,
         maps.edges,
+        maps.edge_step,
         np.asarray(maps.origin, np.float64),
         rest,
         np.asarray(radii, np.int64),
@@ -92,6 +93,7 @@ def test_non_finite_forces_stop_without_accepting_the_step(maps: Maps) -> None:
     iterations, converged, _ = refine_chain(
         maps.probability,
         maps.edges,
+        maps.edge_step,
         np.zeros(2),
         rest,
         np.full(5, 6, np.int64),
