@@ -11,7 +11,7 @@ pixel's centre has integer coordinates, at full and at half resolution.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -38,11 +38,15 @@ class Motion:
         and agreed with the fit, in [0, 1].
     points : int
         How many points were tracked.
+    tracked : numpy.ndarray
+        (K, 2) float32 ``[x, y]``: where the corners that agreed with the fit
+        are in the current frame, to be tracked on from there.
     """
 
     matrix: NDArray[np.float64]
     inlier_ratio: float
     points: int
+    tracked: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 2), np.float32))
 
     def apply(self, nodes: NDArray[np.float64]) -> NDArray[np.float64]:
         """Transform ``[x, y]`` nodes."""
@@ -127,13 +131,10 @@ def _window(
     return x0, y0, max(min(int(x1), w), x0 + 1), max(min(int(y1), h), y0 + 1)
 
 
-def _features(
+def _corners(
     grey: NDArray[np.uint8], nodes: NDArray[np.float64], max_features: int
 ) -> NDArray[np.float32]:
-    """Corners inside (and just around) the contour, plus every fourth contour node.
-
-    ``grey`` and ``nodes`` at half resolution.
-    """
+    """Corners inside (and just around) the contour, ``grey`` and ``nodes`` at half resolution."""
     x0, y0, x1, y1 = _window(grey.shape, nodes, 4)
     sub = np.ascontiguousarray(grey[y0:y1, x0:x1])
     local = nodes - [x0, y0]
@@ -143,12 +144,9 @@ def _features(
     corners = cv2.goodFeaturesToTrack(
         sub, maxCorners=max_features, qualityLevel=0.01, minDistance=3, mask=mask, blockSize=3
     )
-    pts = nodes[::4].astype(np.float32)
-    if corners is not None:
-        pts = np.vstack(
-            [pts, np.asarray(corners, np.float32).reshape(-1, 2) + np.array([x0, y0], np.float32)]
-        )
-    return pts
+    if corners is None:
+        return np.zeros((0, 2), np.float32)
+    return np.asarray(corners, np.float32).reshape(-1, 2) + np.array([x0, y0], np.float32)
 
 
 def estimate_motion(
@@ -162,10 +160,12 @@ def estimate_motion(
     fine_window: int = 15,
     fb_threshold: float = 1.0,
     ransac_threshold: float = 2.0,
+    features: NDArray[np.float32] | None = None,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
 
-    Points: corners inside the contour and every fourth node.  Pyramidal
+    Points: corners inside the contour (found anew, or ``features`` tracked
+    from the frame before) and every fourth node.  Pyramidal
     Lucas-Kanade tracks them at half resolution, forward and back (points
     whose round trip misses by more than ``fb_threshold`` are dropped); one
     more Lucas-Kanade level at full resolution refines the survivors, and
@@ -188,6 +188,10 @@ def estimate_motion(
         Largest forward-backward error (frame pixels) of a kept point.
     ransac_threshold : float
         RANSAC reprojection threshold (frame pixels).
+    features : numpy.ndarray, optional
+        (K, 2) ``[x, y]`` corners in ``previous`` to track instead of
+        detecting new ones (the previous call's :attr:`Motion.tracked`);
+        ignored when fewer than ``max_features // 2`` (at least 3).
 
     Returns
     -------
@@ -199,9 +203,15 @@ def estimate_motion(
     h, w = before.shape
     if min(frames.previous.shape) < 4:
         return Motion.identity()
-    pts = _features(before, frames.to_half(nodes), max_features)
+    half_nodes = frames.to_half(nodes)
+    if features is not None and len(features) >= max(3, max_features // 2):
+        corners = frames.to_half(np.asarray(features, np.float64)).astype(np.float32)
+    else:
+        corners = _corners(before, half_nodes, max_features)
+    pts = np.vstack([half_nodes[::4].astype(np.float32), corners])
+    is_corner = np.arange(len(pts)) >= len(pts) - len(corners)
     inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
-    pts = pts[inside]
+    pts, is_corner = pts[inside], is_corner[inside]
     if len(pts) < 3:
         return Motion.identity(len(pts))
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
@@ -258,14 +268,17 @@ def estimate_motion(
     matrix, inliers = cv2.estimateAffinePartial2D(
         src, dst, method=cv2.RANSAC, ransacReprojThreshold=ransac_threshold, maxIters=500
     )
+    origin = np.asarray(frames.origin, dtype=np.float64)
     if matrix is None or not np.isfinite(matrix).all():
         shift = np.median(dst - src, axis=0)
         matrix = np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]]])
         support = float(good.mean()) * 0.5
+        tracked = np.zeros((0, 2), np.float32)
     else:
         support = float(inliers.sum()) / len(pts)
+        agreed = (np.asarray(inliers).ravel() != 0) & is_corner[good]
+        tracked = (dst[agreed] + origin).astype(np.float32)
     fitted: NDArray[np.float64] = np.asarray(matrix, dtype=np.float64)
     # back to frame coordinates: T(o) M T(-o)
-    origin = np.asarray(frames.origin, dtype=np.float64)
     fitted[:, 2] += origin - fitted[:, :2] @ origin
-    return Motion(fitted, support, len(pts))
+    return Motion(fitted, support, len(pts), tracked)

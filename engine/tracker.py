@@ -45,6 +45,8 @@ __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
 STATE_VERSION = 1
 MIN_SIDE = 16  # frames smaller than this carry no trackable information
+REDETECT_EVERY = 10
+"""Corners are tracked on from frame to frame and found anew every this many frames."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,6 +108,14 @@ def _as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     raise ValueError(f"frame must be H x W grey or H x W x 3 BGR; got shape {frame.shape}")
 
 
+def _as_features(value: Any) -> NDArray[np.float32]:
+    """Corners from a tracker state: finite ``[x, y]`` pairs."""
+    features = np.array(value, dtype=np.float32).reshape(-1, 2)
+    if not np.isfinite(features).all():
+        raise ValueError("features must be finite")
+    return features
+
+
 class Tracker:
     """Follows an object's boundary, frame by frame.
 
@@ -148,6 +158,8 @@ class Tracker:
         self._model: AppearanceModel | None = None
         # p(object) around the contour in the previous frame, 0-255, and its origin
         self._probability: LocatedProbability | None = None
+        # corners on the object in the previous frame, to track on (None: find anew)
+        self._features: NDArray[np.float32] | None = None
         self.frame_index = -1
 
     @staticmethod
@@ -169,6 +181,7 @@ class Tracker:
         self._previous = None
         self._model = None
         self._probability = None
+        self._features = None
 
     def step(self, frame: NDArray[np.uint8]) -> TrackResult:
         """Track into the next frame.
@@ -203,11 +216,17 @@ class Tracker:
             self._previous = grey
             self._model = AppearanceModel.fit(image, self._nodes, opts.band)
             self._probability = self._located_probability(image, self._nodes)
+            self._features = None
             return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
-        motion = estimate_motion(self._previous, grey, self._nodes, max_features=opts.max_features)
+        features = self._features if self.frame_index % REDETECT_EVERY else None
+        motion = estimate_motion(
+            self._previous, grey, self._nodes, max_features=opts.max_features, features=features
+        )
+        self._features = motion.tracked
         predicted = motion.apply(self._nodes)  # a similarity cannot make it cross itself
         if not self._valid(predicted, grey.shape, check_crossing=False):
             predicted, motion = self._nodes, Motion.identity()
+            self._features = None
         rigid = predicted
         if opts.flow_stiffness > 0:
             # non-rigid part: the object's own flow at each node, beyond the
@@ -261,7 +280,8 @@ class Tracker:
             x0, y0, x1, y1 = box
             prob = self._model.probability(image[y0:y1, x0:x1])
             return origin, np.round(prob * 255.0).astype(np.uint8)
-        return maps.origin, np.round(maps.probability * 255.0).astype(np.uint8)
+        # one pass: scale, round half to even (as np.round) and saturate
+        return maps.origin, np.asarray(cv2.convertScaleAbs(maps.probability, alpha=255.0))
 
     def _object_weight(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """p(object) in the previous frame at ``points`` (1 where unknown)."""
@@ -297,10 +317,11 @@ class Tracker:
         Parameters
         ----------
         include_frame : bool
-            Keep the previous grey frame, the colour model and the object
+            Keep the previous grey frame, the colour model, the object
             probability around the contour (PNG and compressed histograms,
-            base64; tens of kB) so tracking continues exactly as if
-            uninterrupted; without them the next frame re-initialises.
+            base64; tens of kB) and the corners being tracked, so tracking
+            continues exactly as if uninterrupted; without them the next
+            frame re-initialises.
         """
         state: dict[str, Any] = {
             "version": STATE_VERSION,
@@ -310,6 +331,7 @@ class Tracker:
             "model": None,
             "previous": None,
             "probability": None,
+            "features": None,
         }
         if self._model is not None and self._previous is not None and include_frame:
             state["model"] = {
@@ -320,6 +342,8 @@ class Tracker:
             if self._probability is not None:
                 origin, prob = self._probability
                 state["probability"] = {"origin": list(origin), "png": pack_image(prob)}
+            if self._features is not None:
+                state["features"] = self._features.tolist()
         return state
 
     @classmethod
@@ -349,6 +373,9 @@ class Tracker:
                 if located is not None:
                     x, y = (int(v) for v in located["origin"])
                     tracker._probability = ((x, y), unpack_image(located["png"]))
+                features = state.get("features")
+                if features is not None:
+                    tracker._features = _as_features(features)
         except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
             raise ValueError(f"malformed tracker state: {exc}") from None
         return tracker

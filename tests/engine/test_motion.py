@@ -101,3 +101,25 @@ def test_motion_apply_and_identity() -> None:
     np.testing.assert_array_equal(identity.apply(NODES), NODES)
     turn = Motion(np.array([[0.0, -1.0, 10.0], [1.0, 0.0, 20.0]]), 1.0, 3)
     np.testing.assert_allclose(turn.apply(np.array([[1.0, 2.0]])), [[8.0, 21.0]])
+
+
+def test_tracked_corners_move_with_the_object_and_can_be_tracked_on(grey: U8) -> None:
+    first, second = CASES["translation"], CASES["rotation+scale"]
+    moved = warp(grey, first)
+    motion = estimate_motion(grey, moved, NODES, max_features=40)
+    assert len(motion.tracked) >= 10
+    assert motion.tracked.dtype == np.float32
+    # each tracked corner sits where the first motion took it: track them on
+    again = warp(moved, second)
+    nodes = transformed(first, NODES)
+    reused = estimate_motion(moved, again, nodes, max_features=40, features=motion.tracked)
+    error = np.hypot(*(reused.apply(nodes) - transformed(second, nodes)).T)
+    assert error.max() < 0.5
+    assert reused.points == len(nodes[::4]) + len(motion.tracked)  # no corners sought anew
+
+
+def test_too_few_features_are_replaced_by_new_corners(grey: U8) -> None:
+    motion = estimate_motion(
+        grey, grey.copy(), NODES, max_features=40, features=np.array([[80.0, 60.0]], np.float32)
+    )
+    assert motion.points > len(NODES[::4]) + 1

@@ -241,6 +241,9 @@ def test_state_is_json_and_names_every_option(
     assert through_json(state) == state
     assert set(state["options"]) == {f.name for f in dataclasses.fields(TrackerOptions)}
     assert state["frame_index"] == 4
+    # the corners being tracked on, for an exact resume
+    assert len(state["features"]) >= 3
+    assert all(len(point) == 2 for point in state["features"])
 
 
 def test_state_round_trip_restores_the_contour_exactly(
@@ -341,6 +344,9 @@ MALFORMED: dict[str, Callable[[State], None]] = {
     "histogram: not encoded": setter("model", "object", value=base64.b64encode(b"abc").decode()),
     "model: no object": setter("model", value={"background": pack(np.ones(4096) / 4096)}),
     "model: a list": setter("model", value=[1, 2]),
+    "features: NaN": setter("features", value=[[math.nan, 1.0]] * 4),
+    "features: not pairs": setter("features", value=[1.0, 2.0, 3.0]),
+    "features: text": setter("features", value="corners"),
 }
 
 
