@@ -191,7 +191,7 @@ def estimate_motion(
     features : numpy.ndarray, optional
         (K, 2) ``[x, y]`` corners in ``previous`` to track instead of
         detecting new ones (the previous call's :attr:`Motion.tracked`);
-        ignored when fewer than ``max_features // 2`` (at least 3).
+        ignored when fewer than ``max_features // 4`` (at least 3).
 
     Returns
     -------
@@ -204,7 +204,7 @@ def estimate_motion(
     if min(frames.previous.shape) < 4:
         return Motion.identity()
     half_nodes = frames.to_half(nodes)
-    if features is not None and len(features) >= max(3, max_features // 2):
+    if features is not None and len(features) >= max(3, max_features // 4):
         corners = frames.to_half(np.asarray(features, np.float64)).astype(np.float32)
     else:
         corners = _corners(before, half_nodes, max_features)
