@@ -290,8 +290,11 @@ def notes_section(results: Results) -> str:
         "frames it did not track.",
         "- Timing: only the `step` calls (frame decoding and scoring excluded), one thread "
         "(`cv2.setNumThreads(1)`; OMP/OPENBLAS/MKL/NUMBA_NUM_THREADS=1), median over frames 1..T "
-        "(frame 0 is initialisation). On each clip the trackers take turns frame by frame, so "
-        "the speed-up compares timings taken under the same machine load.",
+        "(frame 0 is initialisation). Each tracker tracks a whole clip uninterrupted, as in "
+        "use; on each clip the trackers run one after the other, in an order that alternates "
+        "from clip to clip so that changes of machine load fall on all of them. (Taking turns "
+        "frame by frame, as this benchmark once did, lets the 80 ms skimage step evict efdm's "
+        "working set from the caches before every efdm step: about 25 % slower efdm steps.)",
         f"- skimage baseline: `skimage.filters.gaussian(grey, sigma={SKIMAGE_SIGMA:g})` then "
         f"`skimage.segmentation.active_contour(..., {params})`, re-initialised on every frame "
         "from the previous result ((row, col) converted from/to [x, y]); the settings of the "

@@ -85,9 +85,9 @@ def run_davis(
     limits = {} if config.skimage_davis is None else {"skimage": config.skimage_davis}
     results: list[ClipResult] = []
     sheets: list[str] = []
-    for name in select(available, wanted, config.davis_count):
+    for order, name in enumerate(select(available, wanted, config.davis_count)):
         clip = load_davis(name, config.davis_frames)
-        result = run_clip(clip, factories, limits)
+        result = run_clip(clip, factories, limits, reverse=order % 2 == 1)
         results.append(result)
         sheets.append(save_sheet(contact_sheet(clip, result), f"davis_{name}", out))
     return results, sheets, []
@@ -112,7 +112,7 @@ def run_synthetic(
     candidates: list[tuple[float, int, np.ndarray[Any, Any], str]] = []
     for order, name in enumerate(select(available, wanted, config.synthetic_count)):
         clip = load_synthetic(name, config.synthetic_length)
-        result = run_clip(clip, factories, limits)
+        result = run_clip(clip, factories, limits, reverse=order % 2 == 1)
         results.append(result)
         score = result.runs["efdm"].mean_j if "efdm" in result.runs else float(order)
         candidates.append(
