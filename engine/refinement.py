@@ -256,12 +256,12 @@ def refine(
 ) -> Refinement:
     """Equilibrium of the chain around the predicted shape under image forces.
 
-    Iterates X = X0 + U with (I + K) U = F (paper eq. 13-16, solved by the
-    exact O(N) recursions of :func:`engine.deform`, compiled together with
-    the boundary search in :mod:`engine._refine_kernel`), where X0 =
-    ``rest`` and F = (X - X0) + pull: the
-    fixed point K (X - X0) = pull bends the chain away from the predicted
-    shape only as far as the image forces pay for it.  The search radius
+    Iterates X = X0 + U with (I + K) U = F (paper eq. 13-16), where X0 =
+    ``rest`` and F = (X - X0) + pull: the fixed point K (X - X0) = pull
+    bends the chain away from the predicted shape only as far as the image
+    forces pay for it.  The equilibrium is the exact O(N) solution of
+    :func:`engine.deform`, compiled with the boundary search into one call
+    (:mod:`engine._refine_kernel`).  The search radius
     shrinks from :attr:`TrackerOptions.search_radius` to 3 pixels.
 
     Parameters
