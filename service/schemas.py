@@ -10,7 +10,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from engine.deform import METHODS
+from engine.physics.deform import METHODS
 
 LIMIT = 1e9
 """Largest coordinate or force magnitude accepted (pixels): far beyond any image,

@@ -8,7 +8,7 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from engine.cli import serve
+from efdm_cli import serve
 from tests.deploy._files import (
     K8S,
     SERVICE_PORT,

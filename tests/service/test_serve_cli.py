@@ -17,7 +17,7 @@ def test_efdm_serve_starts_answers_and_stops() -> None:
     port = free_port()
     env = {**os.environ, "EFDM_MAX_SESSIONS": "7", "EFDM_LOG_LEVEL": "warning"}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "engine.cli", "serve", "--port", str(port)],
+        [sys.executable, "-m", "efdm_cli", "serve", "--port", str(port)],
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,

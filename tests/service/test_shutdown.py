@@ -140,12 +140,12 @@ class RestCall:
 
 
 def start(tmp_path: Path, env: dict[str, str]) -> Served:
-    """``python -m engine.cli serve`` on a free port; returns once /healthz answers."""
+    """``python -m efdm_cli serve`` on a free port; returns once /healthz answers."""
     port = free_port()
     log = tmp_path / "server.log"
     with log.open("wb") as sink:
         process = subprocess.Popen(
-            [sys.executable, "-m", "engine.cli", "serve", "--port", str(port)],
+            [sys.executable, "-m", "efdm_cli", "serve", "--port", str(port)],
             env={**os.environ, "EFDM_LOG_LEVEL": "warning", **env},
             stdout=sink,
             stderr=subprocess.STDOUT,

@@ -1,0 +1,87 @@
+"""``efdm serve``: run the tracking service (FastAPI + uvicorn)."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+from types import FrameType
+from typing import Any, NoReturn
+
+from efdm_cli._common import EXIT_MISSING, CliError
+
+GRACE_SECONDS = 10
+"""On SIGTERM, seconds for the work in flight before uvicorn cancels what is left."""
+DRAIN_SECONDS = 5.0
+"""Of those, at most this long for WebSocket frames in flight (then 1001 regardless)."""
+
+
+class _TerminatedError(Exception):
+    """SIGTERM arrived outside uvicorn's own handler (before start, or re-raised at the end)."""
+
+
+def _terminated(signum: int, frame: FrameType | None) -> NoReturn:
+    raise _TerminatedError
+
+
+def add_parser(commands: Any) -> None:
+    """Register ``serve`` on the sub-command parser."""
+    p = commands.add_parser(
+        "serve",
+        help="run the HTTP/WebSocket tracking service",
+        description=(
+            "Serve the v1 API, the demo page (/) and /docs. Settings come from EFDM_* "
+            "environment variables (see the README); --host and --port override them."
+        ),
+    )
+    p.add_argument("--host", help="address to listen on (EFDM_HOST, default 127.0.0.1)")
+    p.add_argument("--port", type=int, help="port (EFDM_PORT, default 8000)")
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace, out: Any) -> None:
+    """Start uvicorn with the app (blocks until stopped).
+
+    SIGTERM or Ctrl-C stop it gracefully (:mod:`service.shutdown`): no new
+    connections, requests in flight answered, WebSocket streams closed with
+    ``1001`` after their frame in flight; then the process exits with 0.
+    """
+    try:
+        import uvicorn
+        from uvicorn.config import STARTUP_FAILURE
+
+        from service.app import create_app
+        from service.settings import Settings
+        from service.shutdown import GracefulServer
+    except ImportError as exc:
+        raise CliError(
+            f"the service is not installed ({exc}); install it with "
+            "pip install 'efdm-tracker[service]'",
+            EXIT_MISSING,
+        ) from None
+
+    overrides = {k: v for k, v in {"host": args.host, "port": args.port}.items() if v is not None}
+    settings = Settings(**overrides)
+    app = create_app(settings)
+    config = uvicorn.Config(
+        app,
+        host=settings.host,
+        port=settings.port,
+        log_level=settings.log_level,
+        access_log=settings.log_level in {"info", "debug"},
+        ws_ping_interval=20.0,
+        ws_per_message_deflate=False,  # frames are JPEG: compressing them only costs CPU
+        ws_max_size=max(settings.max_frame_bytes, settings.max_json_bytes) + 1024,
+        ws_ping_timeout=20.0,
+        timeout_graceful_shutdown=GRACE_SECONDS,
+    )
+    server = GracefulServer(config, app.state.streams, drain_seconds=DRAIN_SECONDS)
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    stopped = False
+    try:
+        server.run()
+    except (KeyboardInterrupt, _TerminatedError):
+        stopped = True  # uvicorn re-raises the signal it stopped on: a requested stop succeeds
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    if not server.started and not stopped:
+        raise SystemExit(STARTUP_FAILURE)  # as uvicorn.run: the lifespan start-up failed

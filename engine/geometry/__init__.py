@@ -1,0 +1,36 @@
+"""Contour geometry: validation, resampling, areas, normals, masks and boxes.
+
+All nodes are ``[x, y]`` pixels (x = column, y = row), as in OpenCV; a
+pixel's centre has integer coordinates.  Imports OpenCV (not loaded by
+``import engine``).
+"""
+
+from engine.geometry.contours import (
+    Box,
+    Nodes,
+    as_nodes,
+    bounding_box,
+    circle_nodes,
+    contour_to_mask,
+    mask_iou,
+    mask_to_contour,
+    outward_normals,
+    polygon_area,
+    resample,
+    self_intersects,
+)
+
+__all__ = [
+    "Box",
+    "Nodes",
+    "as_nodes",
+    "bounding_box",
+    "circle_nodes",
+    "contour_to_mask",
+    "mask_iou",
+    "mask_to_contour",
+    "outward_normals",
+    "polygon_area",
+    "resample",
+    "self_intersects",
+]

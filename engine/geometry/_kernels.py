@@ -1,0 +1,58 @@
+"""Compiled contour geometry (numba): self-crossing and outward normals.
+
+Imported lazily so that ``import engine.geometry`` does not start the
+compiler; numba caches the machine code on disk.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+
+@nb.njit(cache=True, nogil=True)
+def polyline_crosses(points: NDArray[np.float64], closed: bool) -> bool:
+    """Whether two non-adjacent edges of the polyline through ``points`` cross."""
+    n = points.shape[0]
+    m = n if closed else n - 1
+    for i in range(m):
+        ax, ay = points[i, 0], points[i, 1]
+        bx, by = points[(i + 1) % n, 0], points[(i + 1) % n, 1]
+        dx, dy = bx - ax, by - ay
+        for j in range(i + 2, m):
+            if closed and i == 0 and j == m - 1:
+                continue  # the last edge shares node 0 with the first
+            cx, cy = points[j, 0], points[j, 1]
+            ex, ey = points[(j + 1) % n, 0], points[(j + 1) % n, 1]
+            o1 = dx * (cy - ay) - dy * (cx - ax)
+            o2 = dx * (ey - ay) - dy * (ex - ax)
+            if o1 * o2 >= 0.0:
+                continue
+            fx, fy = ex - cx, ey - cy
+            o3 = fx * (ay - cy) - fy * (ax - cx)
+            o4 = fx * (by - cy) - fy * (bx - cx)
+            if o3 * o4 < 0.0:
+                return True
+    return False
+
+
+@nb.njit(cache=True, nogil=True)
+def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Unit normals of a closed contour pointing out of it (see engine.geometry.outward_normals)."""
+    n = nodes.shape[0]
+    area = 0.0
+    for i in range(n):
+        k = (i + 1) % n
+        area += nodes[i, 0] * nodes[k, 1] - nodes[i, 1] * nodes[k, 0]
+    sign = 1.0 if area >= 0.0 else -1.0
+    out = np.empty((n, 2))
+    for i in range(n):
+        tx = nodes[(i + 1) % n, 0] - nodes[(i - 1) % n, 0]
+        ty = nodes[(i + 1) % n, 1] - nodes[(i - 1) % n, 1]
+        length = max(math.sqrt(tx * tx + ty * ty), 1e-9)
+        out[i, 0] = sign * ty / length
+        out[i, 1] = -sign * tx / length
+    return out

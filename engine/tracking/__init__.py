@@ -1,0 +1,37 @@
+"""Tracking: follow an object's boundary through video with the chain's physics.
+
+:class:`Tracker` orchestrates three swappable stages, each behind a
+``typing.Protocol`` of :mod:`engine.tracking.stages` (:class:`MotionModel`,
+:class:`AppearanceModel`, :class:`BoundaryCues`), and refines the contour as
+the chain's equilibrium under the image forces (:func:`refine`).  The
+default stages are :class:`FlowMotion`, :class:`ColourHistogram` and
+:class:`RegionEdgeCues`.  Imports OpenCV (``import engine`` does not).
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from engine.tracking._warm import warm_up
+from engine.tracking.appearance import ColourHistogram
+from engine.tracking.cues import RegionEdgeCues
+from engine.tracking.maps import Maps
+from engine.tracking.options import TrackerOptions
+from engine.tracking.prediction import FlowMotion
+from engine.tracking.refinement import Refinement, refine
+from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel, Prediction
+from engine.tracking.tracker import Tracker, TrackResult
+
+__all__ = [
+    "AppearanceModel",
+    "BoundaryCues",
+    "ColourHistogram",
+    "FlowMotion",
+    "Maps",
+    "MotionModel",
+    "Prediction",
+    "Refinement",
+    "RegionEdgeCues",
+    "TrackResult",
+    "Tracker",
+    "TrackerOptions",
+    "refine",
+    "warm_up",
+]

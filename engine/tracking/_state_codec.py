@@ -1,0 +1,49 @@
+"""Compact, validated encodings of the tracker's arrays for its JSON state."""
+
+from __future__ import annotations
+
+import base64
+import zlib
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+HISTOGRAM_SIZES = (32, 4096)  # grey and BGR bins, see engine.tracking.appearance
+
+
+def pack_histogram(values: NDArray[np.float64]) -> str:
+    """Base64 of zlib-compressed little-endian float64: exact and small."""
+    return base64.b64encode(zlib.compress(values.astype("<f8").tobytes())).decode("ascii")
+
+
+def unpack_histogram(text: str) -> NDArray[np.float64]:
+    """Inverse of :func:`pack_histogram`; rejects anything that is not a histogram."""
+    limit = max(HISTOGRAM_SIZES) * 8
+    inflater = zlib.decompressobj()
+    raw = inflater.decompress(base64.b64decode(text, validate=True), limit + 1)
+    if len(raw) > limit or raw == b"" or len(raw) % 8:
+        raise ValueError("histogram has the wrong size")
+    values = np.frombuffer(raw, dtype="<f8").astype(np.float64)
+    if len(values) not in HISTOGRAM_SIZES:
+        raise ValueError(f"histogram must have {' or '.join(map(str, HISTOGRAM_SIZES))} bins")
+    if not np.isfinite(values).all() or (values < 0).any():
+        raise ValueError("histogram values must be finite and >= 0")
+    return values
+
+
+def pack_image(image: NDArray[np.uint8]) -> str:
+    """A single-channel uint8 image as base64 PNG (lossless)."""
+    ok, png = cv2.imencode(".png", image)
+    if not ok:
+        raise ValueError("image does not encode as PNG")
+    return base64.b64encode(png.tobytes()).decode("ascii")
+
+
+def unpack_image(text: str) -> NDArray[np.uint8]:
+    """Inverse of :func:`pack_image`."""
+    data = np.frombuffer(base64.b64decode(text, validate=True), np.uint8)
+    image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
+    if image is None:
+        raise ValueError("image does not decode")
+    return np.asarray(image, dtype=np.uint8)

@@ -1,0 +1,45 @@
+"""Compile (or load from numba's on-disk cache) the tracker's kernels."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.physics.recursive import kernel_arguments
+
+
+def warm_up() -> None:
+    """Run every compiled kernel of the tracker once on tiny inputs.
+
+    Call once at start-up in latency-sensitive programs so that the first
+    tracked frame does not pay the compilation.
+    """
+    from engine.geometry import _kernels as geometry
+    from engine.tracking import _image_kernels as image
+    from engine.tracking._refine_kernel import refine_chain
+
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    geometry.polyline_crosses(square, True)
+    geometry.outward_normals(square)
+    table = np.zeros(4096, np.float32)
+    for picture in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):
+        image.colour_bins(picture, 5, 4)
+        image.colour_lookup(picture, 5, 4, table)
+    maps = np.zeros((4, 4), np.float32)
+    image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
+    image.occluded(
+        maps, np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint8), np.zeros((2, 3)), 0.35, 166
+    )
+    image.boundary_search(maps, maps, 1, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4))
+    image.contour_pull(maps, maps, 1, square, 1, 1.0, 0.5, 0.1, np.empty((4, 2)))
+    refine_chain(
+        maps,
+        maps,
+        2,
+        np.zeros(2),
+        square,
+        np.ones(2, np.int64),
+        np.ones(3),
+        0.1,
+        np.asarray(kernel_arguments(1.0, 4, True), np.float64),
+        np.empty((4, 2)),
+    )

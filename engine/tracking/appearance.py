@@ -1,0 +1,217 @@
+"""``ColourHistogram``: the default :class:`~engine.tracking.stages.AppearanceModel`.
+
+The object's colour histogram comes from inside the contour, the
+background's from a band just outside it; the posterior
+p(object | colour) is looked up per pixel.  Coordinates are ``[x, y]``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Self
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import bounding_box, contour_to_mask
+from engine.tracking._state_codec import pack_histogram, unpack_histogram
+from engine.tracking.stages import check_kind
+
+__all__ = ["ColourHistogram", "Histograms", "bin_count", "quantise"]
+
+KIND = "colour-histogram"
+
+_COLOUR_BITS = 4
+"""16 levels per BGR channel, 4096 bins: coarse enough that a few thousand object
+pixels fill the histogram, fine enough to tell most objects from their surroundings."""
+_GREY_BITS = 5
+"""32 grey levels: one channel needs fewer pixels per bin than three."""
+PRIOR = 1e-3
+"""Weight of the uniform prior added to both histograms: a colour seen in
+neither gets p(object) = 0.5 instead of 0/0."""
+TEACH_OBJECT_ABOVE = 0.55
+"""Only pixels the model already finds object-like (p > 0.55) teach the object
+histogram: an occluder or the background inside a lagging contour does not."""
+TEACH_BACKGROUND_BELOW = 0.9
+"""Only pixels the model does not find clearly object-like (p < 0.9) teach the
+background's: the object's own parts outside a lagging contour do not."""
+OBJECT_INSET = 2
+"""Object pixels are taken this far inside the contour (a 5 x 5 erosion):
+the contour's own pixels mix object and background."""
+
+
+def quantise(image: NDArray[np.uint8]) -> NDArray[np.uint16]:
+    """Histogram bin of every pixel (BGR: 16^3 bins; grey: 32 bins), one compiled pass."""
+    from engine.tracking._image_kernels import colour_bins
+
+    bins: NDArray[np.uint16] = colour_bins(_three_d(image), _GREY_BITS, _COLOUR_BITS)
+    return bins
+
+
+def _three_d(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A contiguous H x W x C view or copy (grey images get C = 1), for the kernels."""
+    arr = np.ascontiguousarray(image, dtype=np.uint8)
+    return arr[..., None] if arr.ndim == 2 else arr
+
+
+def bin_count(image: NDArray[np.uint8]) -> int:
+    """Number of histogram bins for frames like ``image``."""
+    return 1 << (_GREY_BITS if image.ndim == 2 else 3 * _COLOUR_BITS)
+
+
+@dataclass(frozen=True, slots=True)
+class Histograms:
+    """Normalised colour histograms of the object and of its surroundings.
+
+    Attributes
+    ----------
+    object_hist, background_hist : numpy.ndarray
+        float64, each summing to 1 (or all zero when nothing was seen).
+    """
+
+    object_hist: NDArray[np.float64]
+    background_hist: NDArray[np.float64]
+
+    @classmethod
+    def fit(cls, frame: NDArray[np.uint8], nodes: NDArray[np.float64], band: int) -> Histograms:
+        """Histograms from the filled contour and a ``band``-pixel ring around it."""
+        obj, bg = _histograms(frame, nodes, band)
+        return cls(obj, bg)
+
+    def updated(
+        self, frame: NDArray[np.uint8], nodes: NDArray[np.float64], band: int, rate: float
+    ) -> Histograms:
+        """Blend in the histograms of a new frame with weight ``rate``.
+
+        Only pixels the current model already finds object-like
+        (:data:`TEACH_OBJECT_ABOVE`) teach the object histogram, and only
+        pixels it does not find clearly object-like
+        (:data:`TEACH_BACKGROUND_BELOW`) teach the background's: an occluder
+        crossing the contour, or a contour that lags behind the object, does
+        not leak into the wrong histogram.
+        """
+        obj, bg = _histograms(frame, nodes, band, self.table())
+        if obj.shape != self.object_hist.shape:
+            return Histograms(obj, bg)
+
+        def blend(old: NDArray[np.float64], new: NDArray[np.float64]) -> NDArray[np.float64]:
+            return old if new.sum() == 0 else (1 - rate) * old + rate * new  # nothing learnt
+
+        return Histograms(blend(self.object_hist, obj), blend(self.background_hist, bg))
+
+    def table(self) -> NDArray[np.float32]:
+        """p(object | bin), with a weak prior of 0.5 for rarely seen colours."""
+        o, b = self.object_hist + PRIOR / len(self.object_hist), self.background_hist
+        b = b + PRIOR / len(b)
+        return np.asarray(o / (o + b), dtype=np.float32)
+
+    def probability(
+        self, image: NDArray[np.uint8], table: NDArray[np.float32] | None = None
+    ) -> NDArray[np.float32]:
+        """Per-pixel p(object) of an image (or a region of one), float32 in [0, 1]."""
+        from engine.tracking._image_kernels import colour_lookup
+
+        lut = self.table() if table is None else table
+        if bin_count(image) != len(lut):
+            return np.full(image.shape[:2], 0.5, dtype=np.float32)
+        result: NDArray[np.float32] = colour_lookup(
+            _three_d(image), _GREY_BITS, _COLOUR_BITS, np.ascontiguousarray(lut)
+        )
+        return result
+
+    def separation(self) -> float:
+        """How distinct the two histograms are: 1 - Bhattacharyya coefficient."""
+        return float(1.0 - np.sqrt(self.object_hist * self.background_hist).sum())
+
+
+class ColourHistogram:
+    """Object and background colour histograms, learnt online.
+
+    Parameters
+    ----------
+    band : int
+        :attr:`TrackerOptions.band`: width (pixels) of the background ring.
+    learning_rate : float
+        :attr:`TrackerOptions.learning_rate`: share of each confident frame
+        blended into the histograms (0: learn from the first frame only).
+
+    Attributes
+    ----------
+    histograms : Histograms or None
+        What was learnt (None before the first frame).
+    """
+
+    def __init__(self, band: int, learning_rate: float) -> None:
+        self.band = band
+        self.learning_rate = learning_rate
+        self.histograms: Histograms | None = None
+
+    def fit(self, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> None:
+        """Learn anew from the filled contour and the ring around it."""
+        self.histograms = Histograms.fit(image, nodes, self.band)
+
+    def update(self, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> None:
+        """Blend in a confident frame (see :meth:`Histograms.updated`)."""
+        if self.histograms is None:
+            self.fit(image, nodes)
+        elif self.learning_rate > 0:
+            self.histograms = self.histograms.updated(image, nodes, self.band, self.learning_rate)
+
+    def probability(self, image: NDArray[np.uint8]) -> NDArray[np.float32]:
+        """Per-pixel p(object), float32 in [0, 1] (0.5 everywhere before the first frame)."""
+        if self.histograms is None:
+            return np.full(image.shape[:2], 0.5, dtype=np.float32)
+        return self.histograms.probability(image)
+
+    def to_state(self) -> dict[str, Any]:
+        """``{"kind", "object", "background"}``: compressed histograms (None before fitting)."""
+        h = self.histograms
+        return {
+            "kind": KIND,
+            "object": None if h is None else pack_histogram(h.object_hist),
+            "background": None if h is None else pack_histogram(h.background_hist),
+        }
+
+    def from_state(self, state: Mapping[str, Any]) -> Self:
+        """This model's parameters holding ``state`` (of :meth:`to_state`)."""
+        check_kind(state, KIND, "appearance")
+        restored = type(self)(self.band, self.learning_rate)
+        if state.get("object") is not None or state.get("background") is not None:
+            obj = unpack_histogram(state["object"])
+            bg = unpack_histogram(state["background"])
+            if obj.shape != bg.shape:
+                raise ValueError("object and background histograms differ in size")
+            restored.histograms = Histograms(obj, bg)
+        return restored
+
+
+def _histograms(
+    frame: NDArray[np.uint8],
+    nodes: NDArray[np.float64],
+    band: int,
+    table: NDArray[np.float32] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Object and background histograms; with a ``table``, only agreeing pixels."""
+    # the ring, two pixels of slack, and one more past the box's exclusive end
+    x0, y0, x1, y1 = bounding_box(frame.shape, nodes, band + 2, band + 3, keep_inside=False)
+    n_bins = bin_count(frame)
+    if x1 <= x0 or y1 <= y0:
+        return np.zeros(n_bins), np.zeros(n_bins)
+    roi = frame[y0:y1, x0:x1]
+    mask = contour_to_mask(nodes - [x0, y0], roi.shape)
+    # a square ring: dilation by a rectangle is separable, hence cheap
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * band + 1, 2 * band + 1))
+    outer = cv2.dilate(mask, kernel) > 0
+    inset = np.ones((2 * OBJECT_INSET + 1, 2 * OBJECT_INSET + 1), np.uint8)
+    inner = cv2.erode(mask, inset) > 0
+    bins = quantise(roi)
+    ring = outer & (mask == 0)
+    if table is not None and len(table) == n_bins:
+        p = table[bins]
+        inner &= p > TEACH_OBJECT_ABOVE
+        ring &= p < TEACH_BACKGROUND_BELOW
+    obj = np.bincount(bins[inner], minlength=n_bins).astype(np.float64)
+    bg = np.bincount(bins[ring], minlength=n_bins).astype(np.float64)
+    return obj / max(obj.sum(), 1.0), bg / max(bg.sum(), 1.0)

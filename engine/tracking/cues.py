@@ -1,0 +1,99 @@
+"""``RegionEdgeCues``: the default :class:`~engine.tracking.stages.BoundaryCues`.
+
+The cue maps of :mod:`engine.tracking.maps` (the appearance model's object
+probability and the edges) around the predicted contour, with occluders made
+neutral (:mod:`engine.tracking.occlusion`); it remembers p(object) around the
+contour for the next frame, both for the occlusion rule and as the weight of
+the motion read at each node.  Coordinates are ``[x, y]`` pixels.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Self
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.tracking._state_codec import pack_image, unpack_image
+from engine.tracking.maps import Maps, cue_maps, roi_box
+from engine.tracking.occlusion import LocatedProbability, unoccluded
+from engine.tracking.stages import AppearanceModel, Frame, Grey, Prediction, check_kind
+
+__all__ = ["RegionEdgeCues"]
+
+KIND = "region-edge-cues"
+
+
+class RegionEdgeCues:
+    """Region and edge cue maps with an occlusion memory.
+
+    Parameters
+    ----------
+    search_radius : int
+        :attr:`TrackerOptions.search_radius`: the maps cover the contour's box
+        grown by twice this (pixels).
+    occlusion : bool
+        :attr:`TrackerOptions.occlusion`: make covered pixels neutral.
+    """
+
+    def __init__(self, search_radius: int, occlusion: bool) -> None:
+        self.search_radius = search_radius
+        self.occlusion = occlusion
+        # p(object) as 0-255 around the contour in the last frame, and its origin
+        self._memory: LocatedProbability | None = None
+
+    def start(self, image: Frame, nodes: NDArray[np.float64], appearance: AppearanceModel) -> None:
+        """Remember p(object) around the contour of the first frame."""
+        _, (x0, y0, x1, y1) = roi_box(image.shape, nodes, self.search_radius)
+        prob = appearance.probability(image[y0:y1, x0:x1])
+        self._memory = (x0, y0), np.round(prob * 255.0).astype(np.uint8)
+
+    def maps(
+        self,
+        image: Frame,
+        grey: Grey,
+        prediction: Prediction,
+        appearance: AppearanceModel,
+    ) -> Maps:
+        """Cue maps around the prediction, occluders neutral; remembers p(object)."""
+        maps = cue_maps(appearance.probability, image, grey, prediction.nodes, self.search_radius)
+        remembered = maps
+        if self.occlusion:
+            silhouette = (prediction.matrix, prediction.rigid)
+            maps, remembered = unoccluded(maps, self._memory, silhouette)
+        # one pass: scale, round half to even (as np.round) and saturate
+        scaled = np.asarray(cv2.convertScaleAbs(remembered.probability, alpha=255.0), np.uint8)
+        self._memory = remembered.origin, scaled
+        return maps
+
+    def object_weight(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """p(object) in the last frame at ``[x, y]`` points (1 where unknown)."""
+        if self._memory is None:
+            return np.ones(len(points))
+        (x0, y0), prob = self._memory
+        ij = np.round(points - [x0, y0]).astype(int)
+        h, w = prob.shape
+        inside = (ij[:, 0] >= 0) & (ij[:, 0] < w) & (ij[:, 1] >= 0) & (ij[:, 1] < h)
+        out = np.ones(len(points))
+        out[inside] = prob[ij[inside, 1], ij[inside, 0]] / 255.0
+        return out
+
+    def to_state(self) -> dict[str, Any]:
+        """``{"kind", "memory": {"origin", "png"} or None}``."""
+        memory = None
+        if self._memory is not None:
+            origin, prob = self._memory
+            memory = {"origin": list(origin), "png": pack_image(prob)}
+        return {"kind": KIND, "memory": memory}
+
+    def from_state(self, state: Mapping[str, Any]) -> Self:
+        """These cues holding ``state`` (of :meth:`to_state`)."""
+        check_kind(state, KIND, "cues")
+        restored = type(self)(self.search_radius, self.occlusion)
+        memory = state.get("memory")
+        if memory is not None:
+            x, y = (int(v) for v in memory["origin"])
+            restored._memory = (x, y), unpack_image(memory["png"])
+        return restored

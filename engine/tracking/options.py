@@ -1,0 +1,131 @@
+"""``TrackerOptions``: the tuning of :class:`engine.tracking.tracker.Tracker` and its bounds.
+
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV;
+distances below are in pixels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from engine.physics._validation import as_stiffness
+from engine.tracking.motion import MAX_FEATURES
+
+__all__ = ["TrackerOptions"]
+
+_INTEGER_BOUNDS = {"search_radius": 256, "iterations": 100, "band": 256, "max_features": 1000}
+_NUMBER_BOUNDS: dict[str, float] = {
+    "tolerance": math.inf,
+    "region_weight": math.inf,
+    "edge_weight": math.inf,
+    "distance_penalty": math.inf,
+    "flow_stiffness": 1e6,
+    "learning_rate": 1.0,
+}
+
+
+@dataclass(frozen=True, slots=True)
+class TrackerOptions:
+    """Tuning of :class:`engine.tracking.Tracker` and its default stages.
+
+    The defaults were chosen on the DAVIS-2016 validation sequences and the
+    synthetic conditions of :mod:`engine.testing.synthetic` (the reasons
+    below); distances are pixels of the frame.
+
+    Attributes
+    ----------
+    stiffness : float
+        ``a = k/m`` of the chain that regularises the image forces (default
+        40: the chain's Green's function decays by 1/e over about six nodes,
+        so one node on clutter cannot kink the contour, yet a 128-node
+        outline still bends round a limb).
+    search_radius : int
+        How far (1-256) each node looks for the boundary on the first
+        iteration; later iterations look less far (default 12: what is left
+        of a fast object's motion after the motion model's prediction).
+    iterations : int
+        Most refinement iterations per frame (1-100; default 10: enough for
+        the radius to shrink step by step to 3 pixels).
+    tolerance : float
+        Converged when no node moved more than this in an iteration (default
+        0.25 pixels: below the accuracy of the masks the tracker is judged on).
+    region_weight, edge_weight, distance_penalty : float
+        Cue weights of :func:`engine.tracking.boundary.find_boundary`: the
+        colour-region split counts most (1.0), edges half as much (0.5: many
+        edges are texture, not the boundary), and each search radius of
+        displacement costs 0.15 (prefers the nearest of two equal boundaries).
+    band : int
+        Width (1-256) of the background ring of the colour model (default
+        15: the surroundings the contour may move into between two frames).
+    learning_rate : float
+        Share in [0, 1] of each confident frame blended into the colour model
+        (default 0.05: a lighting change is learnt within about 20 frames, a
+        single bad frame moves the model by 5 %).
+    max_features : int
+        Corners tracked inside the object for the motion prediction (1-1000;
+        default :data:`engine.tracking.motion.MAX_FEATURES`).
+    flow_stiffness : float
+        ``a`` of the chain that smooths the per-node optical flow added to
+        the similarity prediction (0 disables the non-rigid prediction;
+        default 20: softer than the refinement's chain (1/e over about four
+        nodes), so that limbs may move on their own, stiff enough to average
+        out a wrong flow vector).
+    occlusion : bool
+        Treat pixels that were the object's and now look like background,
+        inside the rigidly moved silhouette, as covered by an occluder.
+
+    Raises
+    ------
+    ValueError
+        If a field is of the wrong type or outside its bounds.
+    """
+
+    stiffness: float = 40.0
+    search_radius: int = 12
+    iterations: int = 10
+    tolerance: float = 0.25
+    region_weight: float = 1.0
+    edge_weight: float = 0.5
+    distance_penalty: float = 0.15
+    band: int = 15
+    learning_rate: float = 0.05
+    max_features: int = MAX_FEATURES
+    flow_stiffness: float = 20.0
+    occlusion: bool = True
+
+    @classmethod
+    def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
+        """Options from a mapping of field names, with a clear error for unknown ones.
+
+        Raises
+        ------
+        ValueError
+            Naming an unknown option and listing the valid ones, or as
+            :class:`TrackerOptions` for a bad value.
+        """
+        names = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(str(k) for k in options if k not in names)
+        if unknown:
+            raise ValueError(
+                f"unknown tracker option {', '.join(map(repr, unknown))}; "
+                f"the options are {', '.join(names)}"
+            )
+        return cls(**options)
+
+    def __post_init__(self) -> None:
+        as_stiffness(self.stiffness)
+        for name, top in _INTEGER_BOUNDS.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
+                raise ValueError(f"{name} must be an integer in [1, {top}]; got {value!r}")
+        for name, limit in _NUMBER_BOUNDS.items():
+            value = getattr(self, name)
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not ok or not math.isfinite(value) or not 0 <= value <= limit:
+                raise ValueError(f"{name} must be a finite number in [0, {limit:g}]; got {value!r}")
+        if not isinstance(self.occlusion, bool):
+            raise ValueError(f"occlusion must be true or false; got {self.occlusion!r}")

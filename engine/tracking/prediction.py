@@ -1,0 +1,119 @@
+"""``FlowMotion``: the default :class:`~engine.tracking.stages.MotionModel`.
+
+Two parts:
+
+1. rigid: a similarity transform of the whole object, from pyramidal
+   Lucas-Kanade on corners inside the contour and on its nodes,
+   forward-backward checked, with a RANSAC fit (:mod:`engine.tracking.motion`);
+   the corners kept are tracked on from frame to frame and found anew every
+   :data:`REDETECT_EVERY` frames;
+2. non-rigid: the object's own dense optical flow at each node beyond the
+   similarity (:mod:`engine.tracking.flow`), trusted where it was read on
+   object-like pixels and smoothed by the chain as a normalised equilibrium,
+   ``deform(w r) / deform(w)`` (paper eq. 16; docs/math.md, "Flow smoothing").
+
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Self
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import outward_normals
+from engine.physics import deform
+from engine.tracking.flow import DEPTH, node_flow
+from engine.tracking.motion import Motion, estimate_motion
+from engine.tracking.stages import Grey, ObjectWeight, Prediction, check_kind
+from engine.tracking.validity import valid_contour
+
+__all__ = ["REDETECT_EVERY", "FlowMotion"]
+
+KIND = "flow-motion"
+REDETECT_EVERY = 10
+"""Corners are tracked on from frame to frame and found anew every this many
+frames: new texture comes into view as the object turns, and tracked corners
+slowly drift off theirs."""
+MIN_WEIGHT = 1e-3
+"""Floor of the smoothed weight ``deform(w)`` the flow is divided by: where no
+node's flow was read on the object, the non-rigid part is (almost) zero."""
+
+
+class FlowMotion:
+    """Similarity motion plus the chain-smoothed non-rigid flow at the nodes.
+
+    Parameters
+    ----------
+    max_features : int
+        :attr:`TrackerOptions.max_features`: corners tracked inside the object.
+    flow_stiffness : float
+        :attr:`TrackerOptions.flow_stiffness`: ``a`` of the chain smoothing the
+        per-node flow (0: similarity only).
+    """
+
+    def __init__(self, max_features: int, flow_stiffness: float) -> None:
+        self.max_features = max_features
+        self.flow_stiffness = flow_stiffness
+        # corners on the object in the previous frame, to track on (None: find anew)
+        self._features: NDArray[np.float32] | None = None
+
+    def reset(self) -> None:
+        """Find corners anew on the next frame."""
+        self._features = None
+
+    def predict(
+        self,
+        previous: Grey,
+        current: Grey,
+        nodes: NDArray[np.float64],
+        *,
+        frame_index: int,
+        object_weight: ObjectWeight,
+    ) -> Prediction:
+        """The contour moved by the similarity, then bent by the smoothed flow.
+
+        A similarity that makes the contour implausible
+        (:func:`~engine.tracking.validity.valid_contour`) is replaced by no
+        motion, and a bent contour that is implausible by the similarity's.
+        """
+        features = self._features if frame_index % REDETECT_EVERY else None
+        motion = estimate_motion(
+            previous, current, nodes, max_features=self.max_features, features=features
+        )
+        self._features = motion.tracked
+        predicted = motion.apply(nodes)  # a similarity cannot make it cross itself
+        if not valid_contour(predicted, current.shape, nodes, check_crossing=False):
+            predicted, motion = nodes, Motion.identity()
+            self._features = None
+        rigid = predicted
+        if self.flow_stiffness > 0:
+            inward = -outward_normals(nodes)
+            flow = node_flow(previous, current, nodes, inward)
+            residual = (nodes + flow) - predicted
+            w = object_weight(nodes + DEPTH * inward)
+            num = deform(w[:, None] * residual, self.flow_stiffness)
+            den = deform(np.repeat(w[:, None], 2, axis=1), self.flow_stiffness)
+            bent = predicted + num / np.maximum(den, MIN_WEIGHT)
+            if valid_contour(bent, current.shape, nodes):
+                predicted = bent
+        return Prediction(predicted, rigid, motion.matrix, motion.inlier_ratio)
+
+    def to_state(self) -> dict[str, Any]:
+        """``{"kind", "features": [[x, y], ...] or None}``: the corners being tracked."""
+        features = None if self._features is None else self._features.tolist()
+        return {"kind": KIND, "features": features}
+
+    def from_state(self, state: Mapping[str, Any]) -> Self:
+        """This model's parameters holding ``state`` (of :meth:`to_state`)."""
+        check_kind(state, KIND, "motion")
+        restored = type(self)(self.max_features, self.flow_stiffness)
+        features = state.get("features")
+        if features is not None:
+            values = np.array(features, dtype=np.float32).reshape(-1, 2)
+            if not np.isfinite(values).all():
+                raise ValueError("features must be finite")
+            restored._features = values
+        return restored

@@ -1,0 +1,179 @@
+"""The tracker's swappable stages: what each one must do, as ``typing.Protocol``.
+
+:class:`engine.tracking.Tracker` runs three stages per frame and only
+orchestrates them:
+
+1. a :class:`MotionModel` predicts where the contour went (the refinement's
+   rest shape X0);
+2. an :class:`AppearanceModel` says how object-like each pixel is;
+3. :class:`BoundaryCues` turn that and the image into the cue maps
+   (:class:`engine.tracking.maps.Maps`) on which every node seeks the
+   boundary, the chain holding the shape (:func:`engine.tracking.refine`).
+
+Each stage owns its state: ``to_state`` gives it as JSON-able data and
+``from_state``, called on a stage built with the same parameters, gives a
+stage holding that state (the parameters are the stage's constructor's; the
+state is what it learnt from the frames).  A new stage is one class in one
+file that has these methods; pass an instance to the tracker::
+
+    tracker = Tracker(nodes, motion=MyMotion())
+    resumed = Tracker.from_state(tracker.to_state(), motion=MyMotion())
+
+The defaults are :class:`engine.tracking.FlowMotion`,
+:class:`engine.tracking.ColourHistogram` and
+:class:`engine.tracking.RegionEdgeCues`.  Coordinates are ``[x, y]`` pixels
+(x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol, Self, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.tracking.maps import Maps
+
+__all__ = [
+    "AppearanceModel",
+    "BoundaryCues",
+    "Frame",
+    "Grey",
+    "MotionModel",
+    "ObjectWeight",
+    "Prediction",
+    "check_kind",
+]
+
+Frame = NDArray[np.uint8]
+"""An H x W x 3 BGR or H x W grey uint8 image."""
+
+Grey = NDArray[np.uint8]
+"""An H x W grey uint8 image."""
+
+ObjectWeight = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+"""p(object) in the previous frame at (K, 2) ``[x, y]`` points, in [0, 1]."""
+
+
+@dataclass(frozen=True, slots=True)
+class Prediction:
+    """Where a :class:`MotionModel` expects the contour in the current frame.
+
+    Attributes
+    ----------
+    nodes : numpy.ndarray
+        (N, 2) ``[x, y]`` pixels: the predicted contour, the rest shape X0
+        of the refinement (paper eq. 13-16 around it).
+    rigid : numpy.ndarray
+        (N, 2) ``[x, y]`` pixels: the previous contour moved by ``matrix``
+        alone (the object's silhouette, for occlusion reasoning).
+    matrix : numpy.ndarray
+        2 x 3 float64 similarity mapping ``[x, y, 1]`` of the previous frame
+        to the current one.
+    support : float
+        In [0, 1]: how well the image supported the motion (share of
+        agreeing tracked points); part of the tracker's confidence.
+    """
+
+    nodes: NDArray[np.float64]
+    rigid: NDArray[np.float64]
+    matrix: NDArray[np.float64]
+    support: float
+
+    @classmethod
+    def still(cls, nodes: NDArray[np.float64]) -> Prediction:
+        """No motion and no support: the contour stays where it was."""
+        identity = np.hstack([np.eye(2), np.zeros((2, 1))])
+        return cls(nodes, nodes, identity, 0.0)
+
+
+@runtime_checkable
+class MotionModel(Protocol):
+    """Predicts the contour's motion from one grey frame to the next."""
+
+    def reset(self) -> None:
+        """Forget what was learnt from earlier frames (a new contour was placed)."""
+
+    def predict(
+        self,
+        previous: Grey,
+        current: Grey,
+        nodes: NDArray[np.float64],
+        *,
+        frame_index: int,
+        object_weight: ObjectWeight,
+    ) -> Prediction:
+        """The contour ``nodes`` of ``previous`` moved into ``current``.
+
+        ``frame_index`` counts the tracker's frames (``current``'s index);
+        ``object_weight`` gives p(object) in the previous frame, to trust
+        motion read on object pixels more than motion read on background.
+        """
+
+    def to_state(self) -> dict[str, Any]:
+        """JSON-able state (what was learnt; not the constructor's parameters)."""
+
+    def from_state(self, state: Mapping[str, Any]) -> Self:
+        """A stage with this one's parameters holding ``state``; ValueError if malformed."""
+
+
+@runtime_checkable
+class AppearanceModel(Protocol):
+    """Tells object pixels from background pixels."""
+
+    def fit(self, image: Frame, nodes: NDArray[np.float64]) -> None:
+        """Learn anew from the object inside the closed contour ``nodes`` of ``image``."""
+
+    def update(self, image: Frame, nodes: NDArray[np.float64]) -> None:
+        """Learn from a frame the tracker is confident about (contour ``nodes``)."""
+
+    def probability(self, image: Frame) -> NDArray[np.float32]:
+        """Per-pixel p(object) of an image or a region of one: float32 in [0, 1]."""
+
+    def to_state(self) -> dict[str, Any]:
+        """JSON-able state (what was learnt; not the constructor's parameters)."""
+
+    def from_state(self, state: Mapping[str, Any]) -> Self:
+        """A stage with this one's parameters holding ``state``; ValueError if malformed."""
+
+
+@runtime_checkable
+class BoundaryCues(Protocol):
+    """Makes the cue maps on which the nodes seek the object's boundary."""
+
+    def start(self, image: Frame, nodes: NDArray[np.float64], appearance: AppearanceModel) -> None:
+        """The first frame (or the first after a new contour): remember the object there."""
+
+    def maps(
+        self,
+        image: Frame,
+        grey: Grey,
+        prediction: Prediction,
+        appearance: AppearanceModel,
+    ) -> Maps:
+        """Cue maps of the current frame around ``prediction.nodes``.
+
+        Also remembers what the next frame needs (its :meth:`object_weight`).
+        """
+
+    def object_weight(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """p(object) in the last frame seen at ``[x, y]`` points (1 where unknown)."""
+
+    def to_state(self) -> dict[str, Any]:
+        """JSON-able state (what was learnt; not the constructor's parameters)."""
+
+    def from_state(self, state: Mapping[str, Any]) -> Self:
+        """A stage with this one's parameters holding ``state``; ValueError if malformed."""
+
+
+def check_kind(state: Mapping[str, Any], kind: str, stage: str) -> None:
+    """Raise ValueError unless ``state`` is a mapping of ``{"kind": kind, ...}``.
+
+    Each stage names its state's kind, so that a state is never restored into
+    a stage of another kind (``stage`` names the stage in the message).
+    """
+    found = state.get("kind") if isinstance(state, Mapping) else type(state).__name__
+    if found != kind:
+        raise ValueError(f"{stage} state must be of kind {kind!r}; got {found!r}")

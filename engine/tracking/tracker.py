@@ -1,0 +1,369 @@
+"""``Tracker``: follow an object's boundary through video frames.
+
+The tracker orchestrates three swappable stages (:mod:`engine.tracking.stages`)
+and the physics.  Per frame (``step``):
+
+1. a :class:`~engine.tracking.stages.MotionModel` predicts where the contour
+   went (default :class:`~engine.tracking.prediction.FlowMotion`);
+2. :class:`~engine.tracking.stages.BoundaryCues` make the cue maps from the
+   frame and the :class:`~engine.tracking.stages.AppearanceModel` (defaults
+   :class:`~engine.tracking.cues.RegionEdgeCues` and
+   :class:`~engine.tracking.appearance.ColourHistogram`);
+3. refine (:func:`engine.tracking.refine`): each node seeks the boundary
+   along its normal on those maps; the pulls are forces on the chain, whose
+   equilibrium around the predicted shape, X = X0 + U with (I + K) U = F
+   (paper eq. 13-16, :func:`engine.deform`), keeps the shape plausible
+   through noise, clutter and occlusion;
+4. resample by arc length and guard against crossing, collapse and NaN; a
+   confident frame teaches the appearance model.
+
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+import binascii
+import contextlib
+import dataclasses
+import zlib
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from engine.geometry import as_nodes, resample
+from engine.tracking._state_codec import pack_image, unpack_image
+from engine.tracking.appearance import ColourHistogram
+from engine.tracking.cues import RegionEdgeCues
+from engine.tracking.options import TrackerOptions
+from engine.tracking.prediction import FlowMotion
+from engine.tracking.refinement import refine
+from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel
+
+__all__ = ["TrackResult", "Tracker", "TrackerOptions"]
+
+STATE_VERSION = 2
+"""Version 2 keeps each stage's state under ``"stages"``; version 1 (the
+colour model, probability and corners at the top level) is still read."""
+MIN_SIDE = 16
+"""Frames smaller than this (pixels) carry no trackable information."""
+MOTION_SHARE = 0.4
+"""Share of the motion's support in the confidence; the rest is the boundary
+evidence, which says more: a contour on the object's edges is right even when
+the object's texture gives the motion little support."""
+LEARN_ABOVE = 0.5
+"""Only frames with confidence at least this teach the appearance model, so
+that a lost or occluded object does not teach it the background."""
+STAGES = ("motion", "appearance", "cues")
+
+
+@dataclass(frozen=True, slots=True)
+class TrackResult:
+    """Result of one :meth:`Tracker.step`.
+
+    Attributes
+    ----------
+    nodes : numpy.ndarray
+        (N, 2) float64 contour, ``[x, y]`` pixels.
+    iterations : int
+        Refinement iterations run.
+    converged : bool
+        Whether the refinement settled before the iteration limit.
+    confidence : float
+        In [0, 1]; drops when the object is lost (little motion support and
+        no boundary evidence).
+    """
+
+    nodes: NDArray[np.float64]
+    iterations: int
+    converged: bool
+    confidence: float
+
+
+@contextlib.contextmanager
+def _repeatable_opencv() -> Iterator[None]:
+    """OpenCV without its IPP fast paths, for this thread, while tracking.
+
+    Some IPP kernels round differently with memory alignment and thread count,
+    so the same frames could track a little differently from run to run (and
+    between the library and the service).  Costs about 7 % of a frame's time;
+    the setting is thread-local and restored afterwards.
+    """
+    previous = cv2.ipp.useIPP()
+    cv2.ipp.setUseIPP(False)
+    try:
+        yield
+    finally:
+        cv2.ipp.setUseIPP(previous)
+
+
+def _as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Validate a frame; return it as (BGR or grey image, grey image)."""
+    if not isinstance(frame, np.ndarray):
+        raise ValueError(f"frame must be a numpy array; got {type(frame).__name__}")
+    if frame.dtype != np.uint8:
+        raise ValueError(f"frame must be uint8 (as OpenCV decodes images); got {frame.dtype}")
+    if frame.size == 0:
+        raise ValueError(f"frame is empty: shape {frame.shape}")
+    if frame.ndim == 3 and frame.shape[2] == 1:
+        frame = frame[..., 0]
+    if frame.ndim == 2:
+        grey = np.ascontiguousarray(frame)
+        return grey, grey
+    if frame.ndim == 3 and frame.shape[2] in (3, 4):
+        colour = np.ascontiguousarray(frame[..., :3])
+        return colour, np.asarray(cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+    raise ValueError(f"frame must be H x W grey or H x W x 3 BGR; got shape {frame.shape}")
+
+
+class Tracker:
+    """Follows an object's boundary, frame by frame.
+
+    Parameters
+    ----------
+    nodes : array_like
+        Initial contour on the first frame given to :meth:`step`, (N, 2)
+        ``[x, y]`` pixels, N >= 3; resampled evenly by arc length.
+    closed : bool, default True
+        Only closed contours (object boundaries) are tracked.
+    stiffness : float, optional
+        ``a = k/m`` of the chain (default :attr:`TrackerOptions.stiffness`).
+    motion : MotionModel, optional
+        The motion stage (default :class:`~engine.tracking.FlowMotion` with
+        the options' ``max_features`` and ``flow_stiffness``).
+    appearance : AppearanceModel, optional
+        The appearance stage (default :class:`~engine.tracking.ColourHistogram`
+        with the options' ``band`` and ``learning_rate``).
+    cues : BoundaryCues, optional
+        The cue-map stage (default :class:`~engine.tracking.RegionEdgeCues`
+        with the options' ``search_radius`` and ``occlusion``).
+    **options
+        Other :class:`TrackerOptions` fields.
+
+    Raises
+    ------
+    ValueError
+        On a malformed contour (shape, non-finite, zero length) or option.
+    """
+
+    def __init__(
+        self,
+        nodes: ArrayLike,
+        *,
+        closed: bool = True,
+        stiffness: float | None = None,
+        motion: MotionModel | None = None,
+        appearance: AppearanceModel | None = None,
+        cues: BoundaryCues | None = None,
+        **options: Any,
+    ) -> None:
+        if not closed:
+            raise ValueError("the tracker follows object boundaries: closed contours only")
+        if stiffness is not None:
+            options["stiffness"] = stiffness
+        self.options = TrackerOptions.from_mapping(options)
+        opts = self.options
+        self.motion: MotionModel = motion or FlowMotion(opts.max_features, opts.flow_stiffness)
+        self.appearance: AppearanceModel = appearance or ColourHistogram(
+            opts.band, opts.learning_rate
+        )
+        self.cues: BoundaryCues = cues or RegionEdgeCues(opts.search_radius, opts.occlusion)
+        for name, stage, kind in (
+            ("motion", self.motion, MotionModel),
+            ("appearance", self.appearance, AppearanceModel),
+            ("cues", self.cues, BoundaryCues),
+        ):
+            if not isinstance(stage, kind):
+                raise ValueError(
+                    f"{name} must implement {kind.__name__}; got {type(stage).__name__}"
+                )
+        self._nodes = self._initial(nodes)
+        # the previous grey frame (None: the next frame starts the track)
+        self._previous: NDArray[np.uint8] | None = None
+        self.frame_index = -1
+
+    @staticmethod
+    def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
+        arr = as_nodes(nodes)
+        out = resample(arr, len(arr))
+        if np.ptp(out, axis=0).max() <= 0:
+            raise ValueError("the contour has zero length (all nodes coincide)")
+        return out
+
+    @property
+    def nodes(self) -> NDArray[np.float64]:
+        """The current contour, (N, 2) ``[x, y]`` (a copy)."""
+        return self._nodes.copy()
+
+    def reset(self, nodes: ArrayLike) -> None:
+        """Place a new contour; the next frame is taken as the one it lies on."""
+        self._nodes = self._initial(nodes)
+        self._previous = None
+        self.motion.reset()
+
+    def step(self, frame: NDArray[np.uint8]) -> TrackResult:
+        """Track into the next frame.
+
+        The first frame (and the first after :meth:`reset`) only initialises
+        the appearance model from the given contour and returns it unchanged.
+
+        Parameters
+        ----------
+        frame : numpy.ndarray
+            H x W grey or H x W x 3 BGR uint8.
+
+        Returns
+        -------
+        TrackResult
+
+        Raises
+        ------
+        ValueError
+            If the frame is not a non-empty uint8 image.
+        """
+        with _repeatable_opencv():
+            return self._step(frame)
+
+    def _step(self, frame: NDArray[np.uint8]) -> TrackResult:
+        image, grey = _as_frame(frame)
+        self.frame_index += 1
+        if min(grey.shape) < MIN_SIDE:
+            return self._result(0, False, 0.0)
+        if self._previous is None or self._previous.shape != grey.shape:
+            return self._start(image, grey)
+        prediction = self.motion.predict(
+            self._previous,
+            grey,
+            self._nodes,
+            frame_index=self.frame_index,
+            object_weight=self.cues.object_weight,
+        )
+        maps = self.cues.maps(image, grey, prediction, self.appearance)
+        refinement = refine(
+            maps, grey.shape, prediction.nodes, options=self.options, previous_nodes=self._nodes
+        )
+        support = MOTION_SHARE * prediction.support
+        confidence = float(np.clip(support + (1 - MOTION_SHARE) * refinement.contrast, 0.0, 1.0))
+        if not self._visible(grey):
+            confidence = 0.0
+        self._nodes = refinement.nodes
+        self._previous = grey
+        if confidence >= LEARN_ABOVE:
+            self.appearance.update(image, self._nodes)
+        return self._result(refinement.iterations, refinement.converged, confidence)
+
+    def _start(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
+        """The first frame of a track: every stage learns the object anew."""
+        self._previous = grey
+        self.motion.reset()
+        self.appearance.fit(image, self._nodes)
+        self.cues.start(image, self._nodes, self.appearance)
+        return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
+
+    def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
+        return TrackResult(self._nodes.copy(), iterations, converged, confidence)
+
+    def _visible(self, grey: NDArray[np.uint8]) -> bool:
+        h, w = grey.shape
+        lo, hi = self._nodes.min(axis=0), self._nodes.max(axis=0)
+        return bool(hi[0] >= 0 and hi[1] >= 0 and lo[0] < w and lo[1] < h)
+
+    # --- serialisation -------------------------------------------------------------
+
+    def to_state(self, *, include_frame: bool = True) -> dict[str, Any]:
+        """A JSON-able snapshot from which :meth:`from_state` resumes tracking.
+
+        Parameters
+        ----------
+        include_frame : bool
+            Keep the previous grey frame (PNG, base64) and each stage's state
+            (for the defaults: the colour histograms, p(object) around the
+            contour and the corners being tracked; tens of kB), so tracking
+            continues exactly as if uninterrupted; without them the next
+            frame re-initialises.
+        """
+        keep = include_frame and self._previous is not None
+        return {
+            "version": STATE_VERSION,
+            "nodes": self._nodes.tolist(),
+            "options": dataclasses.asdict(self.options),
+            "frame_index": self.frame_index,
+            "previous": pack_image(self._previous) if keep and self._previous is not None else None,
+            "stages": {name: getattr(self, name).to_state() for name in STAGES} if keep else None,
+        }
+
+    @classmethod
+    def from_state(
+        cls,
+        state: Mapping[str, Any],
+        *,
+        motion: MotionModel | None = None,
+        appearance: AppearanceModel | None = None,
+        cues: BoundaryCues | None = None,
+    ) -> Tracker:
+        """Rebuild a tracker from :meth:`to_state` output.
+
+        Parameters
+        ----------
+        state : dict
+            A snapshot of version 2, or of version 1 (before the stages).
+        motion, appearance, cues : optional
+            Stages built like those of the tracker that wrote ``state`` (the
+            defaults when it used the defaults); they get the state's.
+
+        Raises
+        ------
+        ValueError
+            If the state is malformed, of an unknown version, or of stages
+            other than those given.
+        """
+        if not isinstance(state, Mapping) or state.get("version") not in (1, STATE_VERSION):
+            raise ValueError(f"tracker state must be a dict of version 1 or {STATE_VERSION}")
+        try:
+            if state["version"] == 1:
+                state = _from_version_1(state)
+            tracker = cls(
+                state["nodes"],
+                motion=motion,
+                appearance=appearance,
+                cues=cues,
+                **dict(state["options"]),
+            )
+            tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
+            tracker.frame_index = int(state["frame_index"])
+            stages, previous = state.get("stages"), state.get("previous")
+            if stages is not None and previous is not None:
+                tracker.motion = tracker.motion.from_state(stages["motion"])
+                tracker.appearance = tracker.appearance.from_state(stages["appearance"])
+                tracker.cues = tracker.cues.from_state(stages["cues"])
+                tracker._previous = unpack_image(previous)
+        except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
+            raise ValueError(f"malformed tracker state: {exc}") from None
+        return tracker
+
+
+def _from_version_1(state: Mapping[str, Any]) -> dict[str, Any]:
+    """A version-1 state (the default stages' state at the top level) as version 2."""
+    model, previous = state.get("model"), state.get("previous")
+    stages = None
+    if model is not None and previous is not None:
+        stages = {
+            "motion": {"kind": "flow-motion", "features": state.get("features")},
+            "appearance": {
+                "kind": "colour-histogram",
+                "object": model["object"],
+                "background": model["background"],
+            },
+            "cues": {"kind": "region-edge-cues", "memory": state.get("probability")},
+        }
+    return {
+        "version": STATE_VERSION,
+        "nodes": state["nodes"],
+        "options": state["options"],
+        "frame_index": state["frame_index"],
+        "previous": previous if stages is not None else None,
+        "stages": stages,
+    }

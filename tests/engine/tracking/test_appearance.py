@@ -1,0 +1,170 @@
+"""engine.tracking.appearance: the object-versus-background colour model."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from engine.geometry import circle_nodes
+from engine.tracking.appearance import Histograms, quantise
+from tests.engine.scenes import disc_mask, two_colour_frame
+
+U8 = NDArray[np.uint8]
+
+CENTER, RADIUS, BAND = (80.0, 60.0), 25.0, 15
+NODES = circle_nodes(CENTER, RADIUS, 64)
+SHAPE = (120, 160)
+
+
+def regions() -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """Pixels inside the disc, outside it, and in the band the model learnt from.
+
+    All at least 2 px from the disc's edge.
+    """
+    inner = disc_mask(CENTER, RADIUS - 2, SHAPE) > 0
+    outer = disc_mask(CENTER, RADIUS + 2, SHAPE) == 0
+    band = outer & (disc_mask(CENTER, RADIUS + BAND, SHAPE) > 0)
+    return inner, outer, band
+
+
+def grey(frame: U8) -> U8:
+    return np.asarray(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), np.uint8)
+
+
+@pytest.mark.parametrize("as_grey", [False, True], ids=["bgr", "grey"])
+def test_probability_separates_a_two_colour_scene(as_grey: bool) -> None:
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE)
+    if as_grey:
+        frame = grey(frame)
+    model = Histograms.fit(frame, NODES, BAND)
+    prob = model.probability(frame)
+    assert prob.shape == SHAPE
+    assert prob.dtype == np.float32
+    assert ((prob >= 0) & (prob <= 1)).all()
+    inner, outer, band = regions()
+    assert prob[inner].min() > 0.8
+    assert prob[band].max() < 0.2
+    # far away, a noise colour never seen in the band may get the neutral 0.5
+    assert (prob[outer] < 0.2).mean() > 0.99
+    assert model.separation() > 0.8
+
+
+def test_histograms_are_normalised_and_sized_by_frame_kind() -> None:
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE)
+    colour = Histograms.fit(frame, NODES, BAND)
+    mono = Histograms.fit(grey(frame), NODES, BAND)
+    assert colour.object_hist.shape == colour.background_hist.shape
+    assert mono.object_hist.shape == mono.background_hist.shape
+    assert len(mono.object_hist) < len(colour.object_hist)
+    for hist in (colour.object_hist, colour.background_hist, mono.object_hist):
+        assert hist.sum() == pytest.approx(1.0)
+        assert (hist >= 0).all()
+
+
+def test_probability_of_a_sub_image_matches_the_whole_frame() -> None:
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE)
+    model = Histograms.fit(frame, NODES, BAND)
+    whole = model.probability(frame)
+    np.testing.assert_array_equal(model.probability(frame[30:90, 40:120]), whole[30:90, 40:120])
+
+
+def test_probability_of_the_other_frame_kind_is_uninformative() -> None:
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE)
+    model = Histograms.fit(frame, NODES, BAND)
+    np.testing.assert_array_equal(model.probability(grey(frame)), np.full(SHAPE, 0.5, np.float32))
+
+
+def test_separation_high_for_distinct_colours_and_zero_for_identical() -> None:
+    distinct = Histograms.fit(two_colour_frame(CENTER, RADIUS, SHAPE), NODES, BAND)
+    assert distinct.separation() > 0.9
+    flat = np.full((*SHAPE, 3), (90, 120, 150), np.uint8)
+    same = Histograms.fit(flat, NODES, BAND)
+    assert same.separation() == pytest.approx(0.0, abs=1e-9)
+    np.testing.assert_allclose(same.probability(flat), 0.5, atol=1e-3)
+    noisy = two_colour_frame(
+        CENTER, RADIUS, SHAPE, inside_bgr=(120, 120, 120), outside_bgr=(120, 120, 120), noise=20
+    )
+    similar = Histograms.fit(noisy, NODES, BAND)
+    assert similar.separation() < 0.3
+
+
+def bins_of(frame: U8, where: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """The histogram bins of the pixels of ``frame`` at ``where``."""
+    return np.unique(quantise(frame)[where])
+
+
+def test_updated_with_rate_zero_keeps_the_model_which_is_immutable() -> None:
+    first = two_colour_frame(CENTER, RADIUS, SHAPE)
+    model = Histograms.fit(first, NODES, BAND)
+    snapshot = (model.object_hist.copy(), model.background_hist.copy())
+    kept = model.updated(two_colour_frame(CENTER, RADIUS, SHAPE, seed=1), NODES, BAND, 0.0)
+    np.testing.assert_array_equal(kept.object_hist, snapshot[0])
+    np.testing.assert_array_equal(kept.background_hist, snapshot[1])
+    model.updated(two_colour_frame(CENTER, RADIUS, SHAPE, seed=2), NODES, BAND, 0.5)
+    np.testing.assert_array_equal(model.object_hist, snapshot[0])
+    np.testing.assert_array_equal(model.background_hist, snapshot[1])
+
+
+def test_updated_blends_in_a_frame_that_agrees_with_the_model() -> None:
+    """Same scene, new noise: the blend is (1 - rate) old + rate new, new ~ a fresh fit."""
+    rate = 0.25
+    model = Histograms.fit(two_colour_frame(CENTER, RADIUS, SHAPE), NODES, BAND)
+    second = two_colour_frame(CENTER, RADIUS, SHAPE, seed=1)
+    blended = model.updated(second, NODES, BAND, rate)
+    fresh = Histograms.fit(second, NODES, BAND)
+    pairs = [
+        (blended.object_hist, model.object_hist, fresh.object_hist),
+        (blended.background_hist, model.background_hist, fresh.background_hist),
+    ]
+    for mixed, old, fit in pairs:
+        learnt = (mixed - (1 - rate) * old) / rate
+        assert learnt.min() >= -1e-12
+        assert learnt.sum() == pytest.approx(1.0)
+        assert np.abs(learnt - fit).sum() < 0.1  # nearly all of the frame was learnt
+        assert mixed.sum() == pytest.approx(1.0)
+
+
+def test_updated_learns_new_background_colours_but_not_into_the_object() -> None:
+    model = Histograms.fit(two_colour_frame(CENTER, RADIUS, SHAPE), NODES, BAND)
+    teal = two_colour_frame(CENTER, RADIUS, SHAPE, outside_bgr=(200, 200, 30), seed=1)
+    lagging = circle_nodes((CENTER[0] + 8, CENTER[1]), RADIUS, 64)  # 8 px off: covers teal
+    blended = model.updated(teal, lagging, BAND, 0.25)
+    _, outer, _ = regions()
+    new = bins_of(teal, outer)
+    assert blended.background_hist[new].sum() > 0.2
+    assert blended.object_hist[new].sum() < 1e-3
+    # while a fresh fit on the lagging contour would take teal for the object
+    assert Histograms.fit(teal, lagging, BAND).object_hist[new].sum() > 0.05
+
+
+def test_updated_keeps_histograms_normalised() -> None:
+    """Histograms sum to 1 even when no pixel of the new frame passes the agreement test."""
+    model = Histograms.fit(two_colour_frame(CENTER, RADIUS, SHAPE), NODES, BAND)
+    green = two_colour_frame(CENTER, RADIUS, SHAPE, inside_bgr=(40, 200, 40), seed=1)
+    blended = model.updated(green, NODES, BAND, 0.25)
+    assert blended.object_hist.sum() == pytest.approx(1.0)
+    assert blended.background_hist.sum() == pytest.approx(1.0)
+    inner, _, _ = regions()
+    prob = blended.probability(two_colour_frame(CENTER, RADIUS, SHAPE, seed=2))
+    assert (prob[inner] > 0.8).mean() > 0.99  # the red object is still the object
+
+
+def test_updated_with_the_other_frame_kind_starts_afresh() -> None:
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE)
+    model = Histograms.fit(frame, NODES, BAND)
+    switched = model.updated(grey(frame), NODES, BAND, 0.1)
+    np.testing.assert_array_equal(
+        switched.object_hist, Histograms.fit(grey(frame), NODES, BAND).object_hist
+    )
+
+
+def test_contour_outside_the_frame_gives_an_empty_uninformative_model() -> None:
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE)
+    model = Histograms.fit(frame, circle_nodes((-200.0, -200.0), 10.0, 16), BAND)
+    assert not model.object_hist.any()
+    assert not model.background_hist.any()
+    prob = model.probability(frame)
+    assert np.isfinite(prob).all()
+    np.testing.assert_allclose(prob, 0.5)

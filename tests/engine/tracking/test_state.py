@@ -1,0 +1,266 @@
+"""engine.Tracker state: JSON snapshots, exact resume, versions and malformed input."""
+
+from __future__ import annotations
+
+import base64
+import copy
+import dataclasses
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from engine import TrackerOptions, TrackResult
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou
+from engine.tracking._state_codec import pack_histogram as _pack
+from engine.tracking.tracker import STATE_VERSION, Tracker
+from tests.engine.tracking.moving_disc import (
+    H,
+    R,
+    W,
+    assert_same,
+    centre,
+    check_result,
+    initial,
+    run,
+    through_json,
+)
+
+F64 = NDArray[np.float64]
+U8 = NDArray[np.uint8]
+State = dict[str, Any]
+VERSION_1 = Path(__file__).parent / "data" / "tracker_state_v1.json"
+"""Written by the tracker of version 1 after frames 0-4 of the moving disc."""
+
+
+@pytest.fixture(scope="module")
+def tracked_state(frames: list[U8]) -> tuple[State, list[TrackResult], F64]:
+    """State after 5 frames, the uninterrupted results of frames 5-9, and the nodes at 5."""
+    tracker = Tracker(initial())
+    run(tracker, frames[:5])
+    state = through_json(tracker.to_state())
+    nodes = tracker.nodes
+    return state, run(tracker, frames[5:10]), nodes
+
+
+def test_state_is_json_and_names_every_option(
+    tracked_state: tuple[State, list[TrackResult], F64],
+) -> None:
+    state, _, _ = tracked_state
+    assert through_json(state) == state
+    assert set(state["options"]) == {f.name for f in dataclasses.fields(TrackerOptions)}
+    assert state["frame_index"] == 4
+    assert state["version"] == STATE_VERSION
+    assert set(state["stages"]) == {"motion", "appearance", "cues"}
+    # the corners being tracked on, for an exact resume
+    features = state["stages"]["motion"]["features"]
+    assert len(features) >= 3
+    assert all(len(point) == 2 for point in features)
+
+
+def test_state_round_trip_restores_the_contour_exactly(
+    tracked_state: tuple[State, list[TrackResult], F64],
+) -> None:
+    state, _, nodes = tracked_state
+    restored = Tracker.from_state(state)
+    assert restored.frame_index == 4
+    np.testing.assert_array_equal(restored.nodes, nodes)
+
+
+def test_state_round_trip_continues_identically(
+    frames: list[U8], tracked_state: tuple[State, list[TrackResult], F64]
+) -> None:
+    state, expected, _ = tracked_state
+    restored = Tracker.from_state(state)
+    for frame, want in zip(frames[5:10], expected, strict=True):
+        assert_same(restored.step(frame), want)
+    assert restored.frame_index == 9
+
+
+def test_state_before_any_frame(frames: list[U8]) -> None:
+    tracker = Tracker(initial(), iterations=3)
+    restored = Tracker.from_state(through_json(tracker.to_state()))
+    assert restored.options.iterations == 3
+    assert restored.frame_index == -1
+    assert_same(restored.step(frames[0]), tracker.step(frames[0]))
+
+
+def test_state_without_frame_reinitialises_on_the_next_frame(frames: list[U8]) -> None:
+    tracker = Tracker(initial())
+    run(tracker, frames[:5])
+    state = through_json(tracker.to_state(include_frame=False))
+    assert len(json.dumps(state)) < 4000  # no image, no histograms
+    restored = Tracker.from_state(state)
+    np.testing.assert_allclose(restored.nodes, tracker.nodes, atol=0.05)
+    before = restored.nodes
+    result = restored.step(frames[5])
+    check_result(result)
+    np.testing.assert_array_equal(result.nodes, before)
+    assert result.iterations == 0
+    assert result.converged is True
+    assert result.confidence == 1.0
+    assert restored.frame_index == 5
+    # and tracking goes on from there
+    for i in range(6, 10):
+        result = restored.step(frames[i])
+    truth = contour_to_mask(circle_nodes(centre(9), R, 720), (H, W))
+    assert mask_iou(contour_to_mask(result.nodes, (H, W)), truth) >= 0.9
+
+
+def pack(values: NDArray[Any] | list[float]) -> str:
+    """A histogram encoded the way states store them (the engine's own encoder)."""
+    return _pack(np.asarray(values, dtype=np.float64))
+
+
+def setter(*path: str | int, value: Any) -> Callable[[State], None]:
+    def apply(state: State) -> None:
+        target: Any = state
+        for key in path[:-1]:
+            target = target[key]
+        target[path[-1]] = value
+
+    return apply
+
+
+def histogram(which: str, value: str) -> Callable[[State], None]:
+    return setter("stages", "appearance", which, value=value)
+
+
+def deleter(key: str) -> Callable[[State], None]:
+    def apply(state: State) -> None:
+        del state[key]
+
+    return apply
+
+
+MALFORMED: dict[str, Callable[[State], None]] = {
+    "version 3": setter("version", value=3),
+    "version 0": setter("version", value=0),
+    "version as text": setter("version", value="2"),
+    "no version": deleter("version"),
+    "no nodes": deleter("nodes"),
+    "no options": deleter("options"),
+    "no frame_index": deleter("frame_index"),
+    "NaN node": setter("nodes", 0, 0, value=math.nan),
+    "nodes not pairs": setter("nodes", value=[[1.0, 2.0, 3.0]] * 5),
+    "nodes as text": setter("nodes", value="circle"),
+    "nodes coincide": setter("nodes", value=[[5.0, 5.0]] * 8),
+    "options not a mapping": setter("options", value=[1, 2]),
+    "options null": setter("options", value=None),
+    "unknown option": setter("options", "warp_speed", value=9),
+    "bad option value": setter("options", "iterations", value=0),
+    "frame_index text": setter("frame_index", value="four"),
+    "frame_index null": setter("frame_index", value=None),
+    "previous: bad base64": setter("previous", value="!!! not base64 !!!"),
+    "previous: not an image": setter("previous", value=base64.b64encode(b"hello").decode()),
+    "previous: a number": setter("previous", value=12),
+    "histogram: bad base64": histogram("object", "@@@@"),
+    "histogram: NaN": histogram("object", pack(np.full(4096, np.nan))),
+    "histogram: infinite": setter(
+        "stages", "appearance", "background", value=pack(np.full(4096, np.inf))
+    ),
+    "histogram: negative": setter(
+        "stages", "appearance", "object", value=pack(np.full(4096, -1.0))
+    ),
+    "histogram: not encoded": setter(
+        "stages", "appearance", "object", value=base64.b64encode(b"abc").decode()
+    ),
+    "appearance: no object": setter(
+        "stages",
+        "appearance",
+        value={"kind": "colour-histogram", "background": pack(np.ones(4096) / 4096)},
+    ),
+    "appearance: a list": setter("stages", "appearance", value=[1, 2]),
+    "appearance: another kind": setter("stages", "appearance", "kind", value="neural"),
+    "stages: a list": setter("stages", value=[1, 2]),
+    "stages: no motion": lambda state: state["stages"].pop("motion"),
+    "motion: another kind": setter("stages", "motion", "kind", value="kalman"),
+    "cues: no kind": lambda state: state["stages"]["cues"].pop("kind"),
+    "cues: bad memory": setter("stages", "cues", "memory", value={"origin": [0, 0], "png": "@"}),
+    "features: NaN": setter("stages", "motion", "features", value=[[math.nan, 1.0]] * 4),
+    "features: not pairs": setter("stages", "motion", "features", value=[1.0, 2.0, 3.0]),
+    "features: text": setter("stages", "motion", "features", value="corners"),
+}
+
+
+@pytest.mark.parametrize("name", list(MALFORMED))
+def test_from_state_rejects_malformed_state(
+    name: str, tracked_state: tuple[State, list[TrackResult], F64]
+) -> None:
+    state = copy.deepcopy(tracked_state[0])
+    MALFORMED[name](state)
+    with pytest.raises(ValueError, match=r"\S"):
+        Tracker.from_state(state)
+
+
+@pytest.mark.parametrize("state", [None, [], "state", 1], ids=repr)
+def test_from_state_rejects_non_dicts(state: Any) -> None:
+    with pytest.raises(ValueError, match="version"):
+        Tracker.from_state(state)
+
+
+INCONSISTENT_HISTOGRAMS: dict[str, tuple[str, str]] = {
+    "object shorter than background": (pack(np.ones(10) / 10), pack(np.ones(4096) / 4096)),
+    "both empty": (pack([]), pack([])),
+    "both of a size no frame has": (pack(np.ones(10) / 10), pack(np.ones(10) / 10)),
+}
+
+
+@pytest.mark.parametrize("name", list(INCONSISTENT_HISTOGRAMS))
+def test_from_state_rejects_inconsistent_histograms(
+    name: str, frames: list[U8], tracked_state: tuple[State, list[TrackResult], F64]
+) -> None:
+    """A model that cannot belong to any frame is malformed: reject it, do not fail later."""
+    state = copy.deepcopy(tracked_state[0])
+    appearance = state["stages"]["appearance"]
+    appearance["object"], appearance["background"] = INCONSISTENT_HISTOGRAMS[name]
+    with pytest.raises(ValueError, match="malformed"):
+        Tracker.from_state(state)
+
+
+def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
+    """States written before the stages (version 1) continue as if uninterrupted."""
+    old: State = json.loads(VERSION_1.read_text())
+    assert old["version"] == 1
+    tracker = Tracker(initial())
+    run(tracker, frames[:5])
+    expected = run(tracker, frames[5:10])
+    restored = Tracker.from_state(old)
+    assert restored.frame_index == 4
+    for frame, want in zip(frames[5:10], expected, strict=True):
+        assert_same(restored.step(frame), want)
+    upgraded = restored.to_state()
+    assert upgraded["version"] == STATE_VERSION
+
+
+@pytest.mark.parametrize("key", ["model", "probability", "features", "previous"])
+def test_a_version_1_state_with_a_part_missing_still_loads(key: str, frames: list[U8]) -> None:
+    old: State = json.loads(VERSION_1.read_text())
+    old[key] = None
+    restored = Tracker.from_state(old)
+    check_result(restored.step(frames[5]))
+
+
+def test_a_version_1_state_is_refused_by_other_stages() -> None:
+    """Version 1 was only ever written by the default stages."""
+
+    class Still:
+        def reset(self) -> None: ...
+
+        def predict(self, *args: Any, **kwargs: Any) -> Any: ...
+
+        def to_state(self) -> dict[str, Any]:
+            return {"kind": "still"}
+
+        def from_state(self, state: Any) -> Still:
+            if state.get("kind") != "still":
+                raise ValueError("not a still state")
+            return self
+
+    with pytest.raises(ValueError, match="malformed"):
+        Tracker.from_state(json.loads(VERSION_1.read_text()), motion=Still())
