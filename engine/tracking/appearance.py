@@ -28,6 +28,8 @@ _COLOUR_BITS = 4
 pixels fill the histogram, fine enough to tell most objects from their surroundings."""
 _GREY_BITS = 5
 """32 grey levels: one channel needs fewer pixels per bin than three."""
+UNKNOWN = 0.5
+"""p(object) where nothing is known: neither object nor background."""
 PRIOR = 1e-3
 """Weight of the uniform prior added to both histograms: a colour seen in
 neither gets p(object) = 0.5 instead of 0/0."""
@@ -115,7 +117,7 @@ class Histograms:
 
         lut = self.table() if table is None else table
         if bin_count(image) != len(lut):
-            return np.full(image.shape[:2], 0.5, dtype=np.float32)
+            return np.full(image.shape[:2], UNKNOWN, dtype=np.float32)
         result: NDArray[np.float32] = colour_lookup(
             _three_d(image), _GREY_BITS, _COLOUR_BITS, np.ascontiguousarray(lut)
         )
@@ -162,7 +164,7 @@ class ColourHistogram:
     def probability(self, image: NDArray[np.uint8]) -> NDArray[np.float32]:
         """Per-pixel p(object), float32 in [0, 1] (0.5 everywhere before the first frame)."""
         if self.histograms is None:
-            return np.full(image.shape[:2], 0.5, dtype=np.float32)
+            return np.full(image.shape[:2], UNKNOWN, dtype=np.float32)
         return self.histograms.probability(image)
 
     def to_state(self) -> dict[str, Any]:

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.tracking.motion import FramePair
+from engine.tracking.motion import MIN_CROP, FramePair
 
 __all__ = ["DEPTH", "FlowField", "dense_flow", "node_flow"]
 
@@ -72,7 +72,7 @@ def dense_flow(frames: FramePair) -> FlowField | None:
     """
     a, b = frames.half_previous, frames.half_current
     h, w = a.shape
-    if min(frames.previous.shape) < 4:
+    if min(frames.previous.shape) < MIN_CROP:
         return None
     # pad small crops by replication and crop the flow back
     pad_y, pad_x = max(0, DIS_MIN_SIDE - h), max(0, DIS_MIN_SIDE - w)

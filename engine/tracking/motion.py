@@ -26,6 +26,28 @@ CONTEXT = 64
 MAX_FEATURES = 40
 """Corners sought inside the contour: enough for RANSAC to outvote a third of
 them going astray, few enough that tracking them costs well under a millisecond."""
+WINDOW = 9
+"""Lucas-Kanade window side at half resolution: 18 frame pixels, enough texture
+to lock on, small enough to stay on one part of an articulated object."""
+LEVELS = 3
+"""Pyramid levels above the half-resolution crop: with :data:`WINDOW` they follow
+displacements of about 70 frame pixels."""
+FINE_WINDOW = 15
+"""Lucas-Kanade window side of the full-resolution refinement."""
+FB_THRESHOLD = 1.0
+"""Largest forward-backward error (frame pixels) of a point that is kept: a point
+that does not come back to within a pixel of where it started was not tracked."""
+RANSAC_THRESHOLD = 2.0
+"""RANSAC inlier threshold (frame pixels): the similarity misses a non-rigid
+object's own deformation by about this much between frames."""
+MIN_POINTS = 3
+"""Fewest points a similarity is fitted to: two determine it, a third can outvote
+one that went astray."""
+MIN_CROP = 4
+"""Crops smaller than this (pixels) hold nothing to track."""
+KEEP_TRACKED_SHARE = 4
+"""Tracked corners are kept while at least a quarter of :data:`MAX_FEATURES` remain;
+fewer, and corners are sought anew."""
 NODE_STRIDE = 4
 """Every fourth node is tracked with the corners: the outline's own texture,
 without tracking 128 nearly redundant points."""
@@ -183,11 +205,11 @@ def estimate_motion(
     nodes: NDArray[np.float64],
     *,
     max_features: int = MAX_FEATURES,
-    window: int = 9,
-    levels: int = 3,
-    fine_window: int = 15,
-    fb_threshold: float = 1.0,
-    ransac_threshold: float = 2.0,
+    window: int = WINDOW,
+    levels: int = LEVELS,
+    fine_window: int = FINE_WINDOW,
+    fb_threshold: float = FB_THRESHOLD,
+    ransac_threshold: float = RANSAC_THRESHOLD,
     features: NDArray[np.float32] | None = None,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
@@ -229,10 +251,12 @@ def estimate_motion(
     frames = FramePair.around(previous, current, nodes)
     before, after = frames.half_previous, frames.half_current
     h, w = before.shape
-    if min(frames.previous.shape) < 4:
+    if min(frames.previous.shape) < MIN_CROP:
         return Motion.identity()
     half_nodes = frames.to_half(nodes)
-    if features is not None and len(features) >= max(3, max_features // 4):
+    if features is not None and len(features) >= max(
+        MIN_POINTS, max_features // KEEP_TRACKED_SHARE
+    ):
         corners = frames.to_half(np.asarray(features, np.float64)).astype(np.float32)
     else:
         corners = _corners(before, half_nodes, max_features)
@@ -240,7 +264,7 @@ def estimate_motion(
     is_corner = np.arange(len(pts)) >= len(pts) - len(corners)
     inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
     pts, is_corner = pts[inside], is_corner[inside]
-    if len(pts) < 3:
+    if len(pts) < MIN_POINTS:
         return Motion.identity(len(pts))
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, LK_ITERATIONS, LK_EPSILON)
 
@@ -268,7 +292,7 @@ def estimate_motion(
     back, ok_back = track(after, before, fwd, fwd, window, levels)
     # half-resolution pixels are two frame pixels wide
     good = ok_fwd & ok_back & (np.linalg.norm(back - pts, axis=1) < 0.5 * fb_threshold)
-    if good.sum() < 3:
+    if good.sum() < MIN_POINTS:
         return Motion.identity(len(pts))
     # the finest level, at full resolution (crop coordinates: p = 2u + 1/2)
     src = 2.0 * pts[good] + np.float32(0.5)
