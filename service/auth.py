@@ -1,11 +1,13 @@
-"""API keys: ``Authorization: Bearer <key>`` (WebSocket: ``?api_key=<key>``)."""
+"""API keys: ``Authorization: Bearer <key>`` (WebSocket: ``?api_key=<key>``).
+
+The routes take the owner through :data:`service.deps.OwnerDep` (HTTP) or
+check the key themselves once accepted (WebSocket).
+"""
 
 from __future__ import annotations
 
 import hashlib
 import hmac
-
-from fastapi import Request, WebSocket
 
 from service.errors import ApiError
 from service.settings import Settings
@@ -38,16 +40,3 @@ def bearer(header: str | None) -> str | None:
     if header and header[:7].lower() == "bearer ":
         return header[7:].strip() or None
     return None
-
-
-async def request_owner(request: Request) -> str | None:
-    """FastAPI dependency: authenticate an HTTP request."""
-    settings: Settings = request.app.state.settings
-    return check_key(settings, bearer(request.headers.get("authorization")))
-
-
-def websocket_owner(websocket: WebSocket) -> str | None:
-    """Authenticate a WebSocket: the Authorization header, or ``?api_key=`` (browsers)."""
-    settings: Settings = websocket.app.state.settings
-    key = bearer(websocket.headers.get("authorization")) or websocket.query_params.get("api_key")
-    return check_key(settings, key)

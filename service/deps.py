@@ -1,56 +1,84 @@
-"""Shared per-request objects: settings, the store, the CPU worker limiter."""
+"""What routes take from the app, as ``Annotated`` dependencies (FastAPI ``Depends``).
+
+Every route, the WebSocket one included, declares what it needs as a
+parameter typed with one of these aliases: :data:`SettingsDep`,
+:data:`StoreDep`, :data:`CpuDep`, :data:`StreamsDep`, :data:`ApiKeyDep` and
+:data:`OwnerDep`.  None of them reads the body; all run on the event loop
+(``async def``: FastAPI would run plain functions in a thread).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, TypeVar
+from collections.abc import Awaitable, Callable
+from typing import Annotated, Any
 
-import anyio.to_thread
 from anyio import CapacityLimiter
+from fastapi import Depends
 from starlette.requests import HTTPConnection
 
-from service.images import decode_frame
-from service.sessions import Session
+from service.auth import bearer, check_key
 from service.settings import Settings
+from service.shutdown import StreamRegistry
 from service.store import SessionStore
 
-T = TypeVar("T")
+__all__ = [
+    "ApiKeyDep",
+    "CpuDep",
+    "OwnerDep",
+    "SettingsDep",
+    "StoreDep",
+    "StreamsDep",
+    "api_key",
+    "request_owner",
+]
 
 
-def settings_of(conn: HTTPConnection) -> Settings:
-    """The app's settings."""
-    settings: Settings = conn.app.state.settings
-    return settings
+def app_state(name: str) -> Callable[[HTTPConnection], Awaitable[Any]]:
+    """A dependency giving ``app.state.<name>`` (set by :func:`service.app.create_app`).
 
-
-def store_of(conn: HTTPConnection) -> SessionStore:
-    """The app's session store."""
-    store: SessionStore = conn.app.state.store
-    return store
-
-
-async def track_encoded(
-    conn: HTTPConnection, session: Session, data: bytes, media_type: str | None
-) -> dict[str, Any]:
-    """Decode an uploaded frame (within the limits) and track it, in a worker thread."""
-    settings = settings_of(conn)
-
-    def work() -> dict[str, Any]:
-        frame = decode_frame(
-            data,
-            media_type,
-            max_bytes=settings.max_frame_bytes,
-            max_pixels=settings.max_frame_pixels,
-        )
-        return session.track(frame)
-
-    return await compute(conn, work)
-
-
-async def compute(conn: HTTPConnection, fn: Callable[[], T]) -> T:
-    """Run CPU work in a worker thread, at most one per core at a time.
-
-    Keeps the event loop (other sessions, pings, WebSockets) responsive.
+    Parameters
+    ----------
+    name : str
+        The attribute; the ``Annotated`` alias using the dependency gives its type.
     """
-    limiter: CapacityLimiter = conn.app.state.cpu
-    return await anyio.to_thread.run_sync(fn, limiter=limiter)
+
+    async def dependency(conn: HTTPConnection) -> Any:
+        return getattr(conn.app.state, name)
+
+    dependency.__name__ = dependency.__qualname__ = f"{name}_of"
+    return dependency
+
+
+SettingsDep = Annotated[Settings, Depends(app_state("settings"))]
+"""The app's settings."""
+StoreDep = Annotated[SessionStore, Depends(app_state("store"))]
+"""The app's session store."""
+CpuDep = Annotated[CapacityLimiter, Depends(app_state("cpu"))]
+"""The limiter of CPU work in worker threads (one per core by default; :mod:`service.work`)."""
+StreamsDep = Annotated[StreamRegistry, Depends(app_state("streams"))]
+"""The registry of open WebSocket streams (graceful shutdown)."""
+
+
+async def api_key(conn: HTTPConnection) -> str | None:
+    """The API key presented, or None.
+
+    ``Authorization: Bearer <key>``; on a WebSocket also ``?api_key=<key>``
+    (browsers cannot set headers there).
+    """
+    key = bearer(conn.headers.get("authorization"))
+    if key is None and conn.scope["type"] == "websocket":
+        key = conn.query_params.get("api_key")
+    return key
+
+
+ApiKeyDep = Annotated[str | None, Depends(api_key)]
+"""The key as presented, unchecked (a WebSocket checks it once accepted)."""
+
+
+async def request_owner(settings: SettingsDep, key: ApiKeyDep) -> str | None:
+    """Authenticate an HTTP request: the owner of its key (see :func:`check_key`)."""
+    return check_key(settings, key)
+
+
+OwnerDep = Annotated[str | None, Depends(request_owner)]
+"""The authenticated owner of an HTTP request; 401 before the route runs otherwise."""

@@ -1,8 +1,15 @@
-"""Errors as JSON: ``{"error": {"status": 404, "code": "not_found", "message": ...}}``."""
+"""Errors as JSON: ``{"error": {"status": 404, "code": "not_found", "message": ...}}``.
+
+The one place where failures get their HTTP status, error code and headers:
+:data:`HTTP_ERRORS` maps each domain error (:mod:`service.domain_errors`) to
+its status and code, :func:`as_api_error` applies it, and the handlers of
+:func:`install` (REST) and the stream route (WebSocket) both go through it.
+"""
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -12,12 +19,28 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import compile_path
 
 from service import metrics
+from service.domain_errors import (
+    BadImageError,
+    ImageTooLargeError,
+    InvalidInputError,
+    PreconditionFailedError,
+    ServiceError,
+    SessionNotFoundError,
+    StoreUnavailableError,
+    TooManySessionsError,
+    UnsupportedImageTypeError,
+    VersionConflictError,
+)
 
 log = logging.getLogger("efdm.service")
 
 
 class ApiError(Exception):
-    """An error a client caused (or may retry), with its HTTP status."""
+    """An error a client caused (or may retry), with its HTTP status.
+
+    Raised directly only for HTTP concerns (authentication, request framing);
+    domain errors become one through :func:`as_api_error`.
+    """
 
     def __init__(self, status: int, code: str, message: str, **headers: str) -> None:
         super().__init__(message)
@@ -27,9 +50,35 @@ class ApiError(Exception):
         self.headers = headers
 
 
-def not_found() -> ApiError:
-    """Unknown, expired or someone else's session (indistinguishable on purpose)."""
-    return ApiError(404, "not_found", "no such session (unknown, expired or deleted)")
+HTTP_ERRORS: Mapping[type[ServiceError], tuple[int, str]] = {
+    ServiceError: (400, "bad_request"),
+    InvalidInputError: (422, "invalid"),
+    BadImageError: (400, "bad_image"),
+    ImageTooLargeError: (413, "too_large"),
+    UnsupportedImageTypeError: (415, "unsupported_media_type"),
+    SessionNotFoundError: (404, "not_found"),
+    PreconditionFailedError: (412, "version_mismatch"),
+    VersionConflictError: (409, "conflict"),
+    TooManySessionsError: (429, "too_many_sessions"),
+    StoreUnavailableError: (503, "unavailable"),
+}
+"""HTTP status and error code of each domain error (a subclass takes its base's)."""
+
+
+def as_api_error(exc: ApiError | ServiceError) -> ApiError:
+    """The HTTP error a failure answers: status, code, message and headers.
+
+    Parameters
+    ----------
+    exc : ApiError or ServiceError
+        An HTTP error (returned as it is) or a domain error (mapped by
+        :data:`HTTP_ERRORS`; its ``retry_after`` becomes ``Retry-After``).
+    """
+    if isinstance(exc, ApiError):
+        return exc
+    status, code = next(HTTP_ERRORS[k] for k in type(exc).__mro__ if k in HTTP_ERRORS)
+    headers = {} if exc.retry_after is None else {"Retry-After": str(exc.retry_after)}
+    return ApiError(status, code, exc.message, **headers)
 
 
 def body(status: int, code: str, message: str, **extra: Any) -> dict[str, Any]:
@@ -50,10 +99,14 @@ def install(app: FastAPI) -> None:
     """Register the handlers that turn every failure into a JSON error."""
 
     @app.exception_handler(ApiError)
-    async def api_error(_: Request, exc: ApiError) -> JSONResponse:
-        metrics.ERRORS.labels(kind=exc.code).inc()
+    @app.exception_handler(ServiceError)
+    async def api_error(_: Request, exc: ApiError | ServiceError) -> JSONResponse:
+        error = as_api_error(exc)
+        metrics.ERRORS.labels(kind=error.code).inc()
         return JSONResponse(
-            body(exc.status, exc.code, exc.message), status_code=exc.status, headers=exc.headers
+            body(error.status, error.code, error.message),
+            status_code=error.status,
+            headers=error.headers,
         )
 
     @app.exception_handler(RequestValidationError)

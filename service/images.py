@@ -8,20 +8,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from service.errors import ApiError
-
-SUPPORTED = {"image/jpeg", "image/png", "image/webp"}
-
-
-def sniff(data: bytes) -> str | None:
-    """The image type from its magic bytes (``image/png`` ...), or None."""
-    if data.startswith(b"\x89PNG\r\n\x1a\n"):
-        return "image/png"
-    if data.startswith(b"\xff\xd8\xff"):
-        return "image/jpeg"
-    if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
-        return "image/webp"
-    return None
+from service.domain_errors import BadImageError, ImageTooLargeError, UnsupportedImageTypeError
+from service.image_types import SUPPORTED, sniff
 
 
 def dimensions(data: bytes, kind: str) -> tuple[int, int] | None:
@@ -76,32 +64,36 @@ def decode_frame(
 
     Raises
     ------
-    ApiError
-        413 too large (bytes or pixels), 415 unsupported type, 400 not decodable.
+    ImageTooLargeError
+        More bytes or pixels than allowed.
+    UnsupportedImageTypeError
+        Declared as a type other than JPEG, PNG, WebP (or octet-stream).
+    BadImageError
+        Empty, of another format, or not decodable.
     """
     if len(data) > max_bytes:
-        raise ApiError(413, "too_large", f"image of {len(data)} bytes exceeds {max_bytes}")
+        raise ImageTooLargeError(f"image of {len(data)} bytes exceeds {max_bytes}")
     if not data:
-        raise ApiError(400, "bad_image", "empty image")
+        raise BadImageError("empty image")
     declared = (media_type or "").split(";")[0].strip().lower()
     if declared and declared not in SUPPORTED | {"application/octet-stream"}:
-        raise ApiError(415, "unsupported_media_type", f"unsupported image type {declared!r}")
+        raise UnsupportedImageTypeError(f"unsupported image type {declared!r}")
     kind = sniff(data)
     if kind is None:
-        raise ApiError(400, "bad_image", "not a JPEG, PNG or WebP image")
+        raise BadImageError("not a JPEG, PNG or WebP image")
     size = dimensions(data, kind)
     if size is None:
-        raise ApiError(400, "bad_image", f"unreadable {kind} header")
+        raise BadImageError(f"unreadable {kind} header")
     w, h = size
     if w * h > max_pixels:
-        raise ApiError(413, "too_large", f"image of {w} x {h} pixels exceeds {max_pixels}")
+        raise ImageTooLargeError(f"image of {w} x {h} pixels exceeds {max_pixels}")
     frame = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
     if frame is None or frame.size == 0:
-        raise ApiError(400, "bad_image", f"the {kind} image does not decode")
+        raise BadImageError(f"the {kind} image does not decode")
     if frame.dtype == np.uint16:  # 16-bit PNG: keep the high byte
         frame = (np.asarray(frame, dtype=np.uint16) >> 8).astype(np.uint8)
     elif frame.dtype != np.uint8:
-        raise ApiError(400, "bad_image", "unsupported sample format")
+        raise BadImageError("unsupported sample format")
     if frame.ndim == 3 and frame.shape[2] == 4:
         frame = cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
     return np.asarray(frame, dtype=np.uint8)

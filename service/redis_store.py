@@ -5,8 +5,9 @@ version), ``o`` (owner) and ``d`` (the whole state as JSON, tracker included),
 expiring after the idle TTL; a sorted set ``<prefix>:sessions`` (score =
 expiry time) counts them for the session cap.  Every change is an atomic
 compare-and-set on the version (Lua): of two replicas changing one session
-at once, one wins and the other answers ``409``, so no update is lost.
-When Redis is unreachable, calls answer ``503`` and recover by themselves.
+at once, one wins and the other gets :class:`VersionConflictError`, so no update
+is lost.  When Redis is unreachable, calls raise :class:`StoreUnavailableError`
+and recover by themselves.
 """
 
 from __future__ import annotations
@@ -24,7 +25,13 @@ import redis.asyncio as redis
 from redis.exceptions import RedisError, ResponseError
 
 from service import metrics
-from service.errors import ApiError, not_found
+from service.domain_errors import (
+    ServiceError,
+    SessionNotFoundError,
+    StoreUnavailableError,
+    TooManySessionsError,
+    VersionConflictError,
+)
 from service.sessions import Session
 
 T = TypeVar("T")
@@ -56,11 +63,6 @@ def _text(value: bytes | str | None) -> str:
     return value.decode() if isinstance(value, bytes) else value
 
 
-def unavailable() -> ApiError:
-    """The answer while Redis cannot be reached."""
-    return ApiError(503, "unavailable", "session store unreachable; retry", **{"Retry-After": "1"})
-
-
 class _RedisStreamLease:
     """A session kept in memory for a stream, written through every k turns."""
 
@@ -88,10 +90,9 @@ class _RedisStreamLease:
     async def _commit(self) -> None:
         try:
             await self.store.commit(self.session, self.committed)
-        except ApiError as exc:
-            if exc.status == 409:  # changed elsewhere: continue from what Redis holds
-                self.session = await self.store._load(self.session.id, self.owner)
-                self.committed, self.pending = self.session.version, 0
+        except VersionConflictError:  # changed elsewhere: continue from what Redis holds
+            self.session = await self.store._load(self.session.id, self.owner)
+            self.committed, self.pending = self.session.version, 0
             raise
         self.committed, self.pending = self.session.version, 0
 
@@ -140,7 +141,7 @@ class RedisStore:
             raise
         except (RedisError, OSError) as exc:
             metrics.ERRORS.labels(kind="store_unavailable").inc()
-            raise unavailable() from exc
+            raise StoreUnavailableError from exc
 
     def _ttl_ms(self) -> int:
         return max(1, int(self.ttl * 1000))
@@ -164,18 +165,13 @@ class RedisStore:
             )
         )
         if not int(created):
-            raise ApiError(
-                429,
-                "too_many_sessions",
-                f"session limit of {self.max_sessions} reached",
-                **{"Retry-After": "10"},
-            )
+            raise TooManySessionsError(self.max_sessions)
 
     async def _load(self, session_id: str, owner: str | None) -> Session:
         raw = await self._call(lambda: self.redis.hmget(self._key(session_id), ["o", "d"]))
         stored_owner, data = raw
         if data is None or _text(stored_owner) != (owner or ""):
-            raise not_found()
+            raise SessionNotFoundError
         record: dict[str, Any] = json.loads(data)
         return await anyio.to_thread.run_sync(lambda: Session.from_record(record))
 
@@ -203,11 +199,21 @@ class RedisStore:
         try:
             yield held
         finally:
-            with contextlib.suppress(ApiError):
+            with contextlib.suppress(ServiceError):
                 await held.flush()
 
     async def commit(self, session: Session, expected: int) -> None:
-        """Write a session back if nobody changed it since ``expected``; else 409."""
+        """Write a session back if nobody changed it since ``expected``.
+
+        Raises
+        ------
+        VersionConflictError
+            The session changed since ``expected`` (on another replica).
+        SessionNotFoundError
+            The session expired or was deleted meanwhile.
+        StoreUnavailableError
+            Redis cannot be reached.
+        """
         changed = session.version != expected
         data = (
             await anyio.to_thread.run_sync(lambda: json.dumps(session.to_record()))
@@ -230,15 +236,15 @@ class RedisStore:
             )
         )
         if result == -1:
-            raise not_found()
+            raise SessionNotFoundError
         if result == 0:
             metrics.ERRORS.labels(kind="conflict").inc()
-            raise ApiError(409, "conflict", "the session changed concurrently; retry")
+            raise VersionConflictError
 
     async def delete(self, session_id: str, owner: str | None) -> None:
         stored = await self._call(lambda: self.redis.hget(self._key(session_id), "o"))
         if stored is None or _text(stored) != (owner or ""):
-            raise not_found()
+            raise SessionNotFoundError
         async with self.redis.pipeline(transaction=True) as pipe:
             pipe.delete(self._key(session_id))
             pipe.zrem(self._index, session_id)

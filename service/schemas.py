@@ -6,19 +6,21 @@ OpenCV; nodes and forces are lists of such pairs.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from engine.physics.deform import METHODS
+from engine.physics import METHODS
 
 LIMIT = 1e9
 """Largest coordinate or force magnitude accepted (pixels): far beyond any image,
 far below where float64 arithmetic on a contour could overflow."""
 Finite = Annotated[float, Field(allow_inf_nan=False, ge=-LIMIT, le=LIMIT)]
 Point = Annotated[tuple[Finite, Finite], Field(description="[x, y] pixels")]
-Method = Literal["exact", "efdm", "efdmt", "dmma", "dmmat"]
-assert set(METHODS) == {"exact", "efdm", "efdmt", "dmma", "dmmat"}
+if TYPE_CHECKING:
+    Method = str
+else:  # the engine's one list of solvers, as an enum in the schema
+    Method = Literal[METHODS]
 
 
 class Circle(BaseModel):

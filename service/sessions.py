@@ -16,7 +16,8 @@ from numpy.typing import NDArray
 
 from engine import Tracker, deform
 from engine.geometry import circle_nodes
-from service.errors import ApiError
+from engine.physics import MODAL_METHODS
+from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
 from service.schemas import SessionCreate
 
 MODAL_MAX_NODES = 1024
@@ -51,25 +52,29 @@ class Session:
 
     @classmethod
     def create(cls, spec: SessionCreate, owner: str | None, max_nodes: int) -> Session:
-        """Validate the request's contour and options; raises ApiError(422)."""
+        """Validate the request's contour and options.
+
+        Raises
+        ------
+        InvalidInputError
+            Too few or too many nodes, or tracker options it cannot take.
+        """
         if spec.circle is not None:
             c = spec.circle
             if c.count > max_nodes:
-                raise ApiError(422, "invalid", f"circle.count exceeds the limit of {max_nodes}")
+                raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
             nodes = circle_nodes(c.center, c.radius, c.count)
         else:
             nodes = np.asarray(spec.nodes, dtype=np.float64)
         need = 3 if spec.closed else 2
-        if spec.method in ("dmma", "dmmat"):  # O(N^3) references: bounded CPU per request
+        if spec.method in MODAL_METHODS:  # O(N^3) references: bounded CPU per request
             max_nodes = min(max_nodes, MODAL_MAX_NODES)
         if not need <= len(nodes) <= max_nodes:
-            raise ApiError(
-                422, "invalid", f"nodes: need {need} to {max_nodes} nodes; got {len(nodes)}"
-            )
+            raise InvalidInputError(f"nodes: need {need} to {max_nodes} nodes; got {len(nodes)}")
         try:
             tracker = Tracker(nodes, **spec.tracking) if spec.closed else None
         except (TypeError, ValueError) as exc:
-            raise ApiError(422, "invalid", f"tracking: {exc}") from None
+            raise InvalidInputError(f"tracking: {exc}") from None
         if spec.closed and tracker is not None:
             nodes = tracker.nodes  # evenly spaced by arc length
         return cls(
@@ -84,42 +89,66 @@ class Session:
             tracker=tracker,
         )
 
+    def expect_version(self, wanted: str) -> None:
+        """Check the version a client's change expects against the session's.
+
+        Raises
+        ------
+        PreconditionFailedError
+            The session is at another version than ``wanted``.
+        """
+        if wanted != str(self.version):
+            raise PreconditionFailedError(f"session is at version {self.version}, not {wanted}")
+
     def apply_forces(self, forces: list[tuple[float, float]]) -> NDArray[np.float64]:
         """Equilibrium of the rest shape under ``forces``; returns the displacements.
 
         The tracker restarts from the deformed contour (the next frame
         re-initialises its colour model there).
+
+        Raises
+        ------
+        InvalidInputError
+            Not one force per node, or forces the model cannot take.
         """
         F = np.asarray(forces, dtype=np.float64)
         if F.shape != self.rest.shape:
-            raise ApiError(
-                422, "invalid", f"forces: need {len(self.rest)} forces, one per node; got {len(F)}"
+            raise InvalidInputError(
+                f"forces: need {len(self.rest)} forces, one per node; got {len(F)}"
             )
         try:
             U = deform(F, self.stiffness, closed=self.closed, method=self.method)
         except ValueError as exc:
-            raise ApiError(422, "invalid", f"forces: {exc}") from None
+            raise InvalidInputError(f"forces: {exc}") from None
         nodes = self.rest + U
         if not np.isfinite(nodes).all():
-            raise ApiError(422, "invalid", "forces: the deformed contour overflows float64")
+            raise InvalidInputError("forces: the deformed contour overflows float64")
         if self.tracker is not None:
             try:
                 self.tracker.reset(nodes)  # validates before anything changes
             except ValueError as exc:
-                raise ApiError(422, "invalid", f"forces: {exc}") from None
+                raise InvalidInputError(f"forces: {exc}") from None
         self.nodes = nodes
         self.version += 1
         return U
 
     def track(self, frame: NDArray[np.uint8]) -> dict[str, Any]:
-        """One tracker step on a decoded frame; returns the frame result fields."""
+        """One tracker step on a decoded frame; returns the frame result fields.
+
+        Raises
+        ------
+        InvalidInputError
+            The session is an open chain (only closed contours are tracked).
+        BadImageError
+            The tracker cannot use the frame.
+        """
         if self.tracker is None:
-            raise ApiError(422, "invalid", "frames need a closed contour (an object boundary)")
+            raise InvalidInputError("frames need a closed contour (an object boundary)")
         start = time.perf_counter()
         try:
             result = self.tracker.step(frame)
         except ValueError as exc:
-            raise ApiError(400, "bad_image", str(exc)) from None
+            raise BadImageError(str(exc)) from None
         self.frame_index += 1
         self.nodes = result.nodes
         self.rest = result.nodes.copy()

@@ -31,10 +31,9 @@ import socket
 from collections.abc import AsyncIterator
 
 import uvicorn
-from starlette.requests import HTTPConnection
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-__all__ = ["GOING_AWAY", "REASON", "GracefulServer", "Stream", "StreamRegistry", "streams_of"]
+__all__ = ["GOING_AWAY", "REASON", "GracefulServer", "Stream", "StreamRegistry"]
 
 GOING_AWAY = 1001
 REASON = "server shutting down"
@@ -166,12 +165,6 @@ class StreamRegistry:
         if busy:
             log.warning("%d WebSocket stream(s) still tracking after %g s; closed", busy, timeout)
         return len(streams)
-
-
-def streams_of(conn: HTTPConnection) -> StreamRegistry:
-    """The app's stream registry (``app.state.streams``)."""
-    streams: StreamRegistry = conn.app.state.streams
-    return streams
 
 
 class GracefulServer(uvicorn.Server):

@@ -15,7 +15,7 @@ from collections.abc import AsyncIterator
 from typing import Protocol
 
 from service import metrics
-from service.errors import ApiError, not_found
+from service.domain_errors import SessionNotFoundError, TooManySessionsError
 from service.sessions import Session
 
 
@@ -23,12 +23,15 @@ class SessionStore(Protocol):
     """The contract every session store fulfils."""
 
     async def add(self, session: Session) -> None:
-        """Keep a new session; ApiError(429) when the store is full."""
+        """Keep a new session; TooManySessionsError when the store is full."""
 
     def lease(
         self, session_id: str, owner: str | None
     ) -> contextlib.AbstractAsyncContextManager[Session]:
-        """Exclusive access to a session; ApiError(404) if unknown, expired or not the owner's."""
+        """Exclusive access to a session.
+
+        SessionNotFoundError if it is unknown, expired or not the owner's.
+        """
 
     def stream(
         self, session_id: str, owner: str | None, commit_every: int = 1
@@ -41,7 +44,7 @@ class SessionStore(Protocol):
         """
 
     async def delete(self, session_id: str, owner: str | None) -> None:
-        """Remove a session; ApiError(404) as for :meth:`lease`."""
+        """Remove a session; SessionNotFoundError as for :meth:`lease`."""
 
     async def ping(self) -> bool:
         """Whether the store is reachable."""
@@ -92,12 +95,7 @@ class MemoryStore:
         if len(self._sessions) >= self.max_sessions:
             await self.sweep()
         if len(self._sessions) >= self.max_sessions:
-            raise ApiError(
-                429,
-                "too_many_sessions",
-                f"session limit of {self.max_sessions} reached",
-                **{"Retry-After": "10"},
-            )
+            raise TooManySessionsError(self.max_sessions)
         self._sessions[session.id] = session
         self._locks[session.id] = asyncio.Lock()
         metrics.SESSIONS.set(len(self._sessions))
@@ -105,10 +103,10 @@ class MemoryStore:
     def _find(self, session_id: str, owner: str | None) -> Session:
         session = self._sessions.get(session_id)
         if session is None or session.owner != owner:
-            raise not_found()
+            raise SessionNotFoundError
         if self._expired(session, time.time()):
             self._drop(session_id)
-            raise not_found()
+            raise SessionNotFoundError
         return session
 
     @contextlib.asynccontextmanager

@@ -18,6 +18,8 @@ import numpy as np
 import websockets.exceptions
 from numpy.typing import ArrayLike, NDArray
 
+from service.image_types import sniff
+
 Method: TypeAlias = Literal["exact", "efdm", "efdmt", "dmma", "dmmat"]
 Frame: TypeAlias = bytes | bytearray | memoryview | NDArray[Any]
 """An encoded image (JPEG, PNG or WebP bytes), or a BGR / grey uint8 array.
@@ -291,13 +293,7 @@ def forces_body(forces: ArrayLike) -> dict[str, Any]:
 
 def media_type(data: bytes) -> str:
     """The image type from its magic bytes (the server checks them again)."""
-    if data.startswith(b"\xff\xd8\xff"):
-        return "image/jpeg"
-    if data.startswith(b"\x89PNG\r\n\x1a\n"):
-        return "image/png"
-    if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
-        return "image/webp"
-    return "application/octet-stream"
+    return sniff(data) or "application/octet-stream"
 
 
 def frame_bytes(frame: Frame, encoder: Encoder) -> bytes:

@@ -6,22 +6,22 @@ import time
 from typing import Annotated, Any
 
 import orjson
-from fastapi import APIRouter, Depends, Header, Request, Response, status
+from fastapi import APIRouter, Header, Request, Response, status
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from service import metrics
-from service.auth import request_owner
-from service.deps import compute, settings_of, store_of, track_encoded
+from service.deps import CpuDep, OwnerDep, SettingsDep, StoreDep
 from service.errors import ApiError
 from service.schemas import ErrorOut, ForcesIn, ForcesOut, FrameOut, SessionCreate, SessionOut
 from service.sessions import Session
+from service.settings import Settings
+from service.work import compute, track_encoded
 
 router = APIRouter(prefix="/v1/sessions", tags=["sessions"])
 
 CHEAP_METHODS = frozenset({"exact", "efdmt"})
 """Solvers fast enough to run on the event loop (O(N), at most 4096 nodes)."""
 
-Owner = Annotated[str | None, Depends(request_owner)]
 IfMatch = Annotated[
     str | None,
     Header(description="the session version this change expects; 412 when stale"),
@@ -32,24 +32,26 @@ ERRORS: dict[int | str, dict[str, Any]] = {
 
 
 def check_version(session: Session, if_match: str | None) -> None:
-    """412 when ``If-Match`` names another version than the session's."""
+    """412 when ``If-Match`` names another version than the session's (``*``: any)."""
     if if_match is None:
         return
     wanted = if_match.strip().strip('"').removeprefix("W/").strip('"')
-    if wanted != "*" and wanted != str(session.version):
-        raise ApiError(
-            412, "version_mismatch", f"session is at version {session.version}, not {wanted}"
-        )
+    if wanted != "*":
+        session.expect_version(wanted)
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=SessionOut, responses=ERRORS)
 async def create_session(
-    spec: SessionCreate, request: Request, response: Response, owner: Owner
+    spec: SessionCreate,
+    response: Response,
+    owner: OwnerDep,
+    settings: SettingsDep,
+    store: StoreDep,
+    cpu: CpuDep,
 ) -> dict[str, Any]:
     """Create a session from an initial contour (``nodes`` or ``circle``)."""
-    settings = settings_of(request)
-    session = await compute(request, lambda: Session.create(spec, owner, settings.max_nodes))
-    await store_of(request).add(session)
+    session = await compute(cpu, lambda: Session.create(spec, owner, settings.max_nodes))
+    await store.add(session)
     response.headers["Location"] = f"/v1/sessions/{session.id}"
     response.headers["ETag"] = f'"{session.version}"'
     return session.describe(settings.session_ttl_seconds)
@@ -57,18 +59,18 @@ async def create_session(
 
 @router.get("/{session_id}", response_model=SessionOut, responses=ERRORS)
 async def get_session(
-    session_id: str, request: Request, response: Response, owner: Owner
+    session_id: str, response: Response, owner: OwnerDep, settings: SettingsDep, store: StoreDep
 ) -> dict[str, Any]:
     """The session's contour and state."""
-    async with store_of(request).lease(session_id, owner) as session:
+    async with store.lease(session_id, owner) as session:
         response.headers["ETag"] = f'"{session.version}"'
-        return session.describe(settings_of(request).session_ttl_seconds)
+        return session.describe(settings.session_ttl_seconds)
 
 
 @router.delete("/{session_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
-async def delete_session(session_id: str, request: Request, owner: Owner) -> Response:
+async def delete_session(session_id: str, owner: OwnerDep, store: StoreDep) -> Response:
     """Delete the session."""
-    await store_of(request).delete(session_id, owner)
+    await store.delete(session_id, owner)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
@@ -76,17 +78,18 @@ async def delete_session(session_id: str, request: Request, owner: Owner) -> Res
 async def apply_forces(
     session_id: str,
     payload: ForcesIn,
-    request: Request,
-    owner: Owner,
+    owner: OwnerDep,
+    store: StoreDep,
+    cpu: CpuDep,
     if_match: IfMatch = None,
 ) -> Response:
     """Equilibrium of the rest shape under one force per node (paper eq. 15-16)."""
-    async with store_of(request).lease(session_id, owner) as session:
+    async with store.lease(session_id, owner) as session:
         check_version(session, if_match)
         if session.method in CHEAP_METHODS:  # O(N): microseconds, no thread hop needed
             U = session.apply_forces(payload.forces)
         else:
-            U = await compute(request, lambda: session.apply_forces(payload.forces))
+            U = await compute(cpu, lambda: session.apply_forces(payload.forces))
         metrics.FORCES.inc()
         # arrays straight to JSON (orjson), without re-validating the response model
         content = orjson.dumps(
@@ -119,9 +122,8 @@ FRAME_BODY = {
 }
 
 
-async def read_image(request: Request) -> tuple[bytes, str | None]:
+async def read_image(request: Request, settings: Settings) -> tuple[bytes, str | None]:
     """The uploaded image's bytes and declared type (raw body or multipart 'file')."""
-    settings = settings_of(request)
     content_type = request.headers.get("content-type", "")
     if content_type.startswith("multipart/form-data"):
         try:
@@ -143,14 +145,21 @@ async def read_image(request: Request) -> tuple[bytes, str | None]:
     "/{session_id}/frames", response_model=FrameOut, responses=ERRORS, openapi_extra=FRAME_BODY
 )
 async def track_frame(
-    session_id: str, request: Request, response: Response, owner: Owner, if_match: IfMatch = None
+    session_id: str,
+    request: Request,
+    response: Response,
+    owner: OwnerDep,
+    settings: SettingsDep,
+    store: StoreDep,
+    cpu: CpuDep,
+    if_match: IfMatch = None,
 ) -> dict[str, Any]:
     """Track the session's contour into one encoded frame (JPEG, PNG or WebP)."""
     start = time.perf_counter()
-    data, media_type = await read_image(request)
-    async with store_of(request).lease(session_id, owner) as session:
+    data, media_type = await read_image(request, settings)
+    async with store.lease(session_id, owner) as session:
         check_version(session, if_match)
-        result = await track_encoded(request, session, data, media_type)
+        result = await track_encoded(cpu, settings, session, data, media_type)
         response.headers["ETag"] = f'"{session.version}"'
     metrics.FRAMES.labels(transport="rest").inc()
     metrics.FRAME_SECONDS.labels(transport="rest").observe(time.perf_counter() - start)

@@ -13,9 +13,12 @@ Protocol (JSON text messages from the server carry a ``type``):
 When frames arrive faster than they are tracked, only the newest waiting
 frame is kept; the others are counted in the next result's ``dropped``.
 Memory per stream is bounded: one waiting frame and a few control messages.
-Fatal problems close the socket with a code and a reason: 4401 missing or
-wrong API key, 4404 unknown or expired session, 1009 message too large,
-1011 unexpected server error.  Coordinates are ``[x, y]`` pixels.
+Fatal problems close the socket with a code and a reason: 4000 + the
+status a REST call would get (the mapping of :mod:`service.errors`), such
+as 4401 missing or wrong API key, 4404 unknown or expired session, 4503
+session store unreachable; 1009 message too large, 1011 unexpected server
+error.  Error messages carry that status and code too.  Coordinates are
+``[x, y]`` pixels.
 """
 
 from __future__ import annotations
@@ -28,16 +31,20 @@ from collections import deque
 from typing import Any
 
 import anyio
+from anyio import CapacityLimiter
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 
 from service import metrics
-from service.auth import websocket_owner
-from service.deps import compute, settings_of, store_of, track_encoded
-from service.errors import ApiError
+from service.auth import check_key
+from service.deps import ApiKeyDep, CpuDep, SettingsDep, StoreDep, StreamsDep
+from service.domain_errors import InvalidInputError, ServiceError, SessionNotFoundError
+from service.errors import ApiError, as_api_error
 from service.schemas import ForcesIn
-from service.shutdown import Stream, streams_of
+from service.settings import Settings
+from service.shutdown import Stream
 from service.store import StreamLease
+from service.work import compute, track_encoded
 
 router = APIRouter(tags=["stream"])
 
@@ -68,35 +75,45 @@ class Inbox:
         return True
 
 
-def error_message(exc: ApiError) -> dict[str, Any]:
-    """An error as a stream message."""
-    metrics.ERRORS.labels(kind=exc.code).inc()
+def error_message(exc: ApiError | ServiceError) -> dict[str, Any]:
+    """An error as a stream message (status and code as a REST answer has them)."""
+    error = as_api_error(exc)
+    metrics.ERRORS.labels(kind=error.code).inc()
     return {
         "type": "error",
-        "error": {"status": exc.status, "code": exc.code, "message": exc.message},
+        "error": {"status": error.status, "code": error.code, "message": error.message},
     }
 
 
 @router.websocket("/v1/sessions/{session_id}/stream")
-async def stream(websocket: WebSocket, session_id: str) -> None:
+async def stream(
+    websocket: WebSocket,
+    session_id: str,
+    settings: SettingsDep,
+    store: StoreDep,
+    cpu: CpuDep,
+    streams: StreamsDep,
+    key: ApiKeyDep,
+) -> None:
     """Track a stream of frames (see the module docstring for the protocol)."""
     await websocket.accept()
-    store = store_of(websocket)
     try:
-        owner = websocket_owner(websocket)
-        held = store.stream(session_id, owner, settings_of(websocket).stream_commit_every)
+        owner = check_key(settings, key)
+        held = store.stream(session_id, owner, settings.stream_commit_every)
         lease = await held.__aenter__()
-    except ApiError as exc:
-        metrics.ERRORS.labels(kind=exc.code).inc()
-        await websocket.close(code=4000 + exc.status, reason=exc.message[:120])
+    except (ApiError, ServiceError) as exc:
+        error = as_api_error(exc)
+        metrics.ERRORS.labels(kind=error.code).inc()
+        refused = _FatalError.of(error)
+        await websocket.close(code=refused.code, reason=refused.reason[:120])
         return
     metrics.WEBSOCKETS.inc()
-    registered = streams_of(websocket).register(websocket)
+    registered = streams.register(websocket)
     inbox = Inbox()
     try:
         async with anyio.create_task_group() as tasks:
-            tasks.start_soon(_work, websocket, lease, inbox, registered)
-            await _receive(websocket, inbox)
+            tasks.start_soon(_work, websocket, lease, inbox, registered, cpu, settings)
+            await _receive(websocket, inbox, settings)
             tasks.cancel_scope.cancel()
     except* _FatalError as group:  # task groups raise exception groups
         fatal = group.exceptions[0]
@@ -109,7 +126,7 @@ async def stream(websocket: WebSocket, session_id: str) -> None:
         try:
             await held.__aexit__(None, None, None)  # writes through what is pending
         finally:
-            streams_of(websocket).unregister(registered)  # after the write-through
+            streams.unregister(registered)  # after the write-through
 
 
 class _FatalError(Exception):
@@ -117,6 +134,12 @@ class _FatalError(Exception):
         super().__init__(reason)
         self.code = code
         self.reason = reason
+
+    @classmethod
+    def of(cls, exc: ApiError | ServiceError) -> _FatalError:
+        """Close code 4000 + the HTTP status a REST answer would have (4404, 4401 ...)."""
+        error = as_api_error(exc)
+        return cls(4000 + error.status, error.message)
 
 
 class ClientGoneError(Exception):
@@ -135,9 +158,8 @@ async def _close(websocket: WebSocket, code: int, reason: str) -> None:
         await websocket.close(code=code, reason=reason[:120])
 
 
-async def _receive(websocket: WebSocket, inbox: Inbox) -> None:
+async def _receive(websocket: WebSocket, inbox: Inbox, settings: Settings) -> None:
     """Read messages until the client goes away; frames replace older frames."""
-    settings = settings_of(websocket)
     while True:
         message = await websocket.receive()
         if message["type"] == "websocket.disconnect":
@@ -161,9 +183,7 @@ async def _receive(websocket: WebSocket, inbox: Inbox) -> None:
             if not isinstance(parsed, dict) or not ({"forces", "ping"} & parsed.keys()):
                 await _send(
                     websocket,
-                    error_message(
-                        ApiError(422, "invalid", 'expected {"forces": [...]} or {"ping": ...}')
-                    ),
+                    error_message(InvalidInputError('expected {"forces": [...]} or {"ping": ...}')),
                 )
                 continue
             if not inbox.put_control(parsed):
@@ -173,7 +193,14 @@ async def _receive(websocket: WebSocket, inbox: Inbox) -> None:
                 )
 
 
-async def _work(websocket: WebSocket, lease: StreamLease, inbox: Inbox, registered: Stream) -> None:
+async def _work(
+    websocket: WebSocket,
+    lease: StreamLease,
+    inbox: Inbox,
+    registered: Stream,
+    cpu: CapacityLimiter,
+    settings: Settings,
+) -> None:
     """Process waiting control messages in order, then the newest frame."""
     while True:
         await inbox.ready.wait()
@@ -181,31 +208,31 @@ async def _work(websocket: WebSocket, lease: StreamLease, inbox: Inbox, register
         async with registered.in_flight():  # shutdown waits for this, then closes with 1001
             while inbox.control:
                 control = inbox.control.popleft()
-                await _send(websocket, await _control(websocket, lease, control))
+                await _send(websocket, await _control(lease, control, cpu))
             if inbox.frame is not None:
                 data, dropped = inbox.frame, inbox.dropped
                 inbox.frame, inbox.dropped = None, 0
-                await _send(websocket, await _frame(websocket, lease, data, dropped))
+                await _send(websocket, await _frame(lease, data, dropped, cpu, settings))
 
 
 async def _control(
-    websocket: WebSocket, lease: StreamLease, message: dict[str, Any]
+    lease: StreamLease, message: dict[str, Any], cpu: CapacityLimiter
 ) -> dict[str, Any]:
     if "ping" in message:
         try:
             json.dumps(message["ping"], allow_nan=False)  # echo only what JSON can carry
         except ValueError:
-            return error_message(ApiError(422, "invalid", "ping: NaN and Infinity are not JSON"))
+            return error_message(InvalidInputError("ping: NaN and Infinity are not JSON"))
         return {"type": "pong", "pong": message["ping"]}
     try:
         payload = ForcesIn.model_validate({"forces": message.get("forces")})
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"])
-        return error_message(ApiError(422, "invalid", f"{where}: {first['msg']}"))
+        return error_message(InvalidInputError(f"{where}: {first['msg']}"))
     try:
         async with lease.turn() as session:
-            U = await compute(websocket, lambda: session.apply_forces(payload.forces))
+            U = await compute(cpu, lambda: session.apply_forces(payload.forces))
             metrics.FORCES.inc()
             return {
                 "type": "forces",
@@ -213,22 +240,22 @@ async def _control(
                 "displacements": U.tolist(),
                 "version": session.version,
             }
-    except ApiError as exc:
-        if exc.status == 404:
-            raise _FatalError(4404, exc.message) from None
+    except SessionNotFoundError as exc:  # gone (expired, deleted): the stream ends
+        raise _FatalError.of(exc) from None
+    except ServiceError as exc:
         return error_message(exc)
 
 
 async def _frame(
-    websocket: WebSocket, lease: StreamLease, data: bytes, dropped: int
+    lease: StreamLease, data: bytes, dropped: int, cpu: CapacityLimiter, settings: Settings
 ) -> dict[str, Any]:
     start = time.perf_counter()
     try:
         async with lease.turn() as session:
-            result = await track_encoded(websocket, session, data, None)
-    except ApiError as exc:
-        if exc.status == 404:
-            raise _FatalError(4404, exc.message) from None
+            result = await track_encoded(cpu, settings, session, data, None)
+    except SessionNotFoundError as exc:  # gone (expired, deleted): the stream ends
+        raise _FatalError.of(exc) from None
+    except ServiceError as exc:
         return {**error_message(exc), "dropped": dropped}
     metrics.FRAMES.labels(transport="websocket").inc()
     metrics.FRAME_SECONDS.labels(transport="websocket").observe(time.perf_counter() - start)

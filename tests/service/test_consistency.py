@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from engine import Tracker, deform
 from engine.geometry import circle_nodes
-from service.images import sniff
+from service.image_types import sniff
 from tests.service.conftest import disc_frame
 
 Step = tuple[str, Any]  # ("frame", jpeg bytes) or ("forces", [[fx, fy], ...])

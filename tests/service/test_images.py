@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from service.errors import ApiError
-from service.images import decode_frame, dimensions, sniff
+from service.domain_errors import ServiceError
+from service.errors import ApiError, as_api_error
+from service.image_types import sniff
+from service.images import decode_frame, dimensions
 
 LIMITS = {"max_bytes": 8 * 1024 * 1024, "max_pixels": 4096 * 2160}
 
@@ -55,9 +57,9 @@ def decode(data: bytes, media_type: str | None = None, **limits: int) -> NDArray
 
 
 def api_error(data: bytes, media_type: str | None = None, **limits: int) -> ApiError:
-    with pytest.raises(ApiError) as info:
+    with pytest.raises(ServiceError) as info:
         decode(data, media_type, **limits)
-    return info.value
+    return as_api_error(info.value)
 
 
 IMG = picture()
@@ -248,8 +250,8 @@ def test_a_header_claiming_less_than_the_data_never_decodes_larger(data: bytes) 
     outcome: NDArray[np.uint8] | ApiError
     try:
         outcome = decode(data, max_pixels=64)
-    except ApiError as exc:
-        outcome = exc
+    except ServiceError as exc:
+        outcome = as_api_error(exc)
     if isinstance(outcome, ApiError):
         assert (outcome.status, outcome.code) == (400, "bad_image")
     else:

@@ -32,7 +32,7 @@ class Replica:
         self.ws = f"ws://127.0.0.1:{self.port}"
         env = {**os.environ, "EFDM_REDIS_URL": redis_url, "EFDM_LOG_LEVEL": "critical"}
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "engine.cli", "serve", "--port", str(self.port)],
+            [sys.executable, "-m", "efdm_cli", "serve", "--port", str(self.port)],
             env=env,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,

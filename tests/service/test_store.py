@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from service.errors import ApiError
+from service.domain_errors import ServiceError, SessionNotFoundError, TooManySessionsError
+from service.errors import as_api_error
 from service.schemas import SessionCreate
 from service.sessions import Session
 from service.store import MemoryStore, SessionStore
@@ -98,8 +99,8 @@ async def status_of_lease(store: SessionStore, sid: str, owner: str | None) -> i
     try:
         async with store.lease(sid, owner):
             return 200
-    except ApiError as exc:
-        return exc.status
+    except ServiceError as exc:
+        return as_api_error(exc).status
 
 
 async def test_add_then_lease_gives_the_session(make_store: Stores) -> None:
@@ -127,9 +128,8 @@ async def test_changes_made_under_a_lease_are_kept(make_store: Stores) -> None:
 async def test_unknown_sessions_are_not_found(make_store: Stores) -> None:
     store = make_store()
     assert await status_of_lease(store, "nope", None) == 404
-    with pytest.raises(ApiError) as info:
+    with pytest.raises(SessionNotFoundError):
         await store.delete("nope", None)
-    assert (info.value.status, info.value.code) == (404, "not_found")
 
 
 async def test_owner_isolation(make_store: Stores) -> None:
@@ -141,7 +141,7 @@ async def test_owner_isolation(make_store: Stores) -> None:
     assert await status_of_lease(store, mine.id, "bob") == 404
     assert await status_of_lease(store, mine.id, None) == 404
     assert await status_of_lease(store, anonymous.id, "alice") == 404
-    with pytest.raises(ApiError):
+    with pytest.raises(SessionNotFoundError):
         await store.delete(mine.id, "bob")
     assert await store.count() == 2
     assert await status_of_lease(store, mine.id, "alice") == 200
@@ -154,7 +154,7 @@ async def test_delete(make_store: Stores) -> None:
     await store.delete(s.id, "alice")
     assert await store.count() == 0
     assert await status_of_lease(store, s.id, "alice") == 404
-    with pytest.raises(ApiError):
+    with pytest.raises(SessionNotFoundError):
         await store.delete(s.id, "alice")
 
 
@@ -163,11 +163,10 @@ async def test_capacity(make_store: Stores) -> None:
     first, second = session(), session()
     await store.add(first)
     await store.add(second)
-    with pytest.raises(ApiError) as info:
+    with pytest.raises(TooManySessionsError) as info:
         await store.add(session())
-    assert info.value.status == 429
-    assert info.value.code == "too_many_sessions"
-    assert int(info.value.headers["Retry-After"]) > 0
+    assert info.value.limit == 2
+    assert info.value.retry_after > 0
     assert await store.count() == 2
     await store.delete(first.id, None)
     await store.add(session())
@@ -270,8 +269,8 @@ async def test_a_waiter_finds_the_session_deleted_under_it(make_store: Stores) -
             async with store.lease(s.id, None):
                 entered.set()
                 await asyncio.sleep(0.1)
-        except ApiError as exc:  # a store may tell the holder its session is gone
-            holder_saw.append(exc.status)
+        except ServiceError as exc:  # a store may tell the holder its session is gone
+            holder_saw.append(as_api_error(exc).status)
 
     task = asyncio.create_task(holder())
     await entered.wait()
