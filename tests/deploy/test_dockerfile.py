@@ -94,7 +94,8 @@ def test_only_runtime_dependencies_are_installed(instructions: list[Instruction]
     assert "pip install" in runs
     for extra in ("[dev", "[bench", ".[", "pytest", "hypothesis"):
         assert extra not in runs, f"{extra!r}: dev or bench extras in the image"
-    assert '["project"]["dependencies"]' in runs  # exactly the [project] dependencies
+    # exactly the engine's dependencies and the [service] extra: what `.[service]` installs
+    assert 'p["dependencies"] + p["optional-dependencies"]["service"]' in runs
 
 
 def test_pip_gets_the_ca_bundle_as_a_build_secret(instructions: list[Instruction]) -> None:
@@ -170,7 +171,7 @@ def test_dockerignore_keeps_out_the_clutter_and_in_what_the_build_copies(
         if i.keyword == "COPY" and not i.args.startswith("--from")
         for source in i.args.split()[:-1]
     ]
-    assert {"pyproject.toml", "README.md", "engine", "service"} <= set(copied)
+    assert {"pyproject.toml", "README.md", "engine", "service", "efdm_cli"} <= set(copied)
     for source in copied:
         assert (ROOT / source).exists(), source
         hits = [p for p in patterns if not p.startswith("!") and fnmatch.fnmatch(source, p)]
