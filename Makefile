@@ -27,7 +27,6 @@ lint: $(STAMP)
 
 typecheck: $(STAMP)
 	$(BIN)/mypy
-	$(BIN)/mypy bench/service.py
 
 pytest: $(STAMP)
 	$(BIN)/python -m pytest -q
@@ -44,21 +43,22 @@ lint-deploy: $(STAMP)
 test-container: $(STAMP)
 	PYTHON=$(BIN)/python bash docker/test-container.sh
 
-## bench: every benchmark; results land in bench/results/
+## bench: every benchmark (python -m bench.<family>); results land in bench/results/
 bench: bench-solvers bench-tracking bench-service bench-load
 
 bench-solvers: $(STAMP)
-	$(BIN)/python bench/solvers.py
+	$(BIN)/python -m bench.solvers
 
 bench-tracking: $(STAMP)
-	$(BIN)/python bench/tracking.py
+	$(BIN)/python -m bench.tracking
 
+## bench-service: a real `efdm serve` on loopback against engine.Tracker in-process (bench/serving)
 bench-service: $(STAMP)
-	$(BIN)/python bench/service.py
+	$(BIN)/python -m bench.serving
 
 ## bench-load: concurrent WebSocket sessions on 1 and 2 replicas sharing a Redis (redis-server)
 bench-load: $(STAMP)
-	$(BIN)/python bench/load.py
+	$(BIN)/python -m bench.load
 
 clean:
 	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache

@@ -1,8 +1,9 @@
-"""Tracking benchmark data: the DAVIS-2016 subset and the synthetic sequences.
+"""The sequences the benchmarks run on: the DAVIS-2016 subset and the synthetic sequences.
 
 Both give :class:`Clip` objects: frames (H x W x 3 BGR uint8) with one
-ground-truth mask each (H x W uint8, 0 / 255).  ``engine.synthetic`` is
-imported lazily, so the DAVIS part runs while it is missing.
+ground-truth mask each (H x W uint8, 0 / 255); the tracking benchmark runs on
+them, the service benchmark sends them as JPEG.  ``engine.testing.synthetic``
+is imported lazily, so the DAVIS part runs while it is missing.
 """
 
 from __future__ import annotations
@@ -17,10 +18,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from bench.common import REPO
+
 Frame = NDArray[np.uint8]
 Mask = NDArray[np.uint8]
 
-DAVIS_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "davis2016"
+DAVIS_ROOT = REPO.parent / "shared" / "data" / "davis2016"
+"""The DAVIS-2016 subset beside the repository (``../shared/data/davis2016``)."""
 DAVIS_ORDER = ("blackswan", "car-shadow", "dog", "soapbox", "breakdance")
 """The order of the DAVIS README's tables; other sequences follow alphabetically."""
 
@@ -88,12 +92,12 @@ def load_davis(name: str, limit: int | None = None, root: Path = DAVIS_ROOT) -> 
 
 
 def synthetic_module() -> Any:
-    """``engine.synthetic``, imported on first use (raises ImportError while it is missing)."""
-    return importlib.import_module("engine.synthetic")
+    """``engine.testing.synthetic``, imported on first use (ImportError while it is missing)."""
+    return importlib.import_module("engine.testing.synthetic")
 
 
 def synthetic_conditions() -> tuple[str, ...]:
-    """``engine.synthetic.CONDITIONS``."""
+    """``engine.testing.synthetic.CONDITIONS``."""
     return tuple(str(c) for c in synthetic_module().CONDITIONS)
 
 

@@ -1,31 +1,24 @@
-"""Processes of the load benchmark: a throwaway Redis and ``efdm serve`` replicas.
+"""The load benchmark's Redis: a throwaway ``redis-server`` and its counters.
 
-Everything listens on 127.0.0.1 on free ports and is always stopped when its
-block ends (SIGTERM: the replicas shut down gracefully, then killed if they
-linger).  :func:`redis_counters` reads the Redis ``INFO`` counters the report
-divides by the frames tracked.
+It listens on 127.0.0.1 on a free port and is always stopped when its block
+ends; the ``efdm serve`` replicas come from :func:`bench.serving.server.running_servers`.
+:func:`redis_counters` reads the Redis ``INFO`` counters the report divides by
+the frames tracked.
 """
 
 from __future__ import annotations
 
 import contextlib
-import os
 import shutil
 import subprocess
-import sys
-import tempfile
 import time
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
-import httpx
 import redis
 
-from _service_server import HOST, START_TIMEOUT, STOP_TIMEOUT, Server, free_port
-
-REPO = Path(__file__).resolve().parent.parent
+from bench.common.processes import HOST, free_port, stop
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,14 +27,6 @@ class RedisProcess:
 
     pid: int
     url: str
-
-
-@dataclass(slots=True)
-class Replicas:
-    """Running ``efdm serve`` processes, and their exit codes once stopped."""
-
-    servers: list[Server]
-    exit_codes: list[int | None] = field(default_factory=list)
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,17 +49,6 @@ class RedisCounters:
     replies: int
     cpu_seconds: float
     calls: dict[str, int]
-
-
-def _stop(process: subprocess.Popen[bytes]) -> int | None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout=STOP_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(timeout=STOP_TIMEOUT)
-    return process.returncode
 
 
 @contextlib.contextmanager
@@ -108,7 +82,7 @@ def running_redis() -> Iterator[RedisProcess]:
                 time.sleep(0.02)
         yield RedisProcess(process.pid, url)
     finally:
-        _stop(process)
+        stop(process)
 
 
 def redis_counters(client: redis.Redis) -> RedisCounters:
@@ -144,55 +118,15 @@ def counters_overhead(client: redis.Redis) -> RedisCounters:
     return difference(redis_counters(client), first)
 
 
-def _tail(path: Path, size: int = 2000) -> str:
+def redis_version() -> str:
+    """``redis-server X.Y.Z`` (``redis-server ?`` when it does not say)."""
     try:
-        return path.read_bytes()[-size:].decode(errors="replace")
-    except OSError:
-        return ""
-
-
-def _wait_healthy(process: subprocess.Popen[bytes], url: str, log_path: Path) -> None:
-    deadline = time.monotonic() + START_TIMEOUT
-    with httpx.Client(base_url=url, timeout=2.0) as client:
-        while time.monotonic() < deadline:
-            if process.poll() is not None:
-                raise RuntimeError(f"efdm serve exited ({process.returncode}): {_tail(log_path)}")
-            with contextlib.suppress(httpx.HTTPError):
-                if client.get("/readyz").status_code == 200:
-                    return
-            time.sleep(0.05)
-    raise RuntimeError(f"efdm serve not ready within {START_TIMEOUT:.0f} s: {_tail(log_path)}")
-
-
-@contextlib.contextmanager
-def running_replicas(count: int, env: Mapping[str, str]) -> Iterator[Replicas]:
-    """``count`` processes of ``python -m engine.cli serve`` with ``env``, for the block.
-
-    They start together; each must answer ``/readyz`` (its store reachable).
-    Their output goes to temporary files, quoted when one fails to start.
-    On exit they get SIGTERM; :attr:`Replicas.exit_codes` records how they ended.
-    """
-    base = {**os.environ, "EFDM_LOG_LEVEL": "warning", "EFDM_HOST": HOST, **env}
-    with contextlib.ExitStack() as stack:
-        folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="efdm-load-")))
-        started: list[tuple[subprocess.Popen[bytes], int, Path]] = []
-        replicas = Replicas([])
-
-        def stop_all() -> None:
-            replicas.exit_codes = [_stop(process) for process, _, _ in started]
-
-        stack.callback(stop_all)
-        start = time.perf_counter()
-        for i in range(count):
-            port = free_port()
-            log_path = folder / f"replica{i}.log"
-            sink: Any = stack.enter_context(log_path.open("wb"))
-            command = [sys.executable, "-m", "engine.cli", "serve", "--port", str(port)]
-            process = subprocess.Popen(command, cwd=REPO, env=base, stdout=sink, stderr=sink)
-            started.append((process, port, log_path))
-        for process, port, log_path in started:
-            url = f"http://{HOST}:{port}"
-            _wait_healthy(process, url, log_path)
-            seconds = time.perf_counter() - start
-            replicas.servers.append(Server(process.pid, url, f"ws://{HOST}:{port}", seconds))
-        yield replicas
+        text = subprocess.run(
+            ["redis-server", "--version"], capture_output=True, text=True, timeout=10, check=True
+        ).stdout
+    except (OSError, subprocess.SubprocessError):
+        return "redis-server ?"
+    for part in text.split():
+        if part.startswith("v="):
+            return f"redis-server {part[2:]}"
+    return "redis-server ?"

@@ -1,8 +1,9 @@
 """Load benchmark: many concurrent WebSocket sessions on 1 and 2 replicas sharing one Redis.
 
 Rows, each with 1, 10 and 100 concurrent sessions (``--quick``: 1 and 4),
-every session streaming small JPEG frames closed loop (the next frame when
-the previous result arrived; 320 x 240 ``engine.synthetic`` frames):
+every session streaming small JPEG frames closed loop through the project's
+client (the next frame when the previous result arrived; 320 x 240
+``engine.testing.synthetic`` frames):
 
 - one ``efdm serve`` replica with the in-memory store (the reference);
 - one replica with ``EFDM_REDIS_URL``;
@@ -14,99 +15,40 @@ the CPU time of the replicas, of Redis and of this client per frame.
 redis-server and the replicas run as subprocesses on free 127.0.0.1 ports
 and are always stopped at the end (SIGTERM: the replicas shut down
 gracefully; their exit codes are noted).  Every row is bounded in frames and
-in time.  Run ``python bench/load.py`` (``make bench-load``); ``--quick``
+in time.  Run ``python -m bench.load`` (``make bench-load``); ``--quick``
 for a smoke test, ``--out DIR`` for where ``load.md`` and ``load.json`` go
 (default ``bench/results/``).  Progress goes to stderr.
 """
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import math
 import os
-import subprocess
-import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from pathlib import Path
 
 import redis
 
-from _load_clients import Clip, Load, run_sessions, synthetic_clip
-from _load_cluster import (
+from bench.common.benchmark import Benchmark
+from bench.common.log import log
+from bench.common.machine import load_average, machine_info
+from bench.load.cluster import (
     RedisCounters,
     counters_overhead,
     difference,
     redis_counters,
+    redis_version,
     running_redis,
-    running_replicas,
 )
-from _load_report import (
-    FULL,
-    QUICK,
-    Config,
-    LoadRow,
-    Results,
-    render,
-    sessions_label,
-    to_json,
-)
-from _machine import load_average, machine_info
-from _output import quick_and_out, write_results
-from _service_server import Server, cpu_seconds
-from _service_stats import Measurement
-
-REPO = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = REPO / "bench" / "results"
-
-
-def log(message: str) -> None:
-    """Progress line on stderr."""
-    print(f"[bench/load] {message}", file=sys.stderr, flush=True)
-
-
-@dataclass(slots=True)
-class Meter:
-    """Counters read right before and after a row's timed part.
-
-    Redis is read on one open connection; what the readings themselves add
-    (the first ``INFO`` and its reply) is measured once and subtracted.
-    """
-
-    servers: Sequence[Server]
-    redis: redis.Redis | None
-    server_cpu: float = 0.0
-    client_cpu: float = 0.0
-    counters: RedisCounters | None = None
-
-    def _server_cpu(self) -> float:
-        return sum(cpu_seconds(s.pid) for s in self.servers)
-
-    def start(self) -> None:
-        """Snapshot the counters."""
-        self.counters = redis_counters(self.redis) if self.redis is not None else None
-        self.server_cpu = self._server_cpu()
-        self.client_cpu = time.process_time()
-
-    def stop(self) -> None:
-        """Differences since :meth:`start`, kept for :meth:`fill`."""
-        self.client_cpu = time.process_time() - self.client_cpu
-        self.server_cpu = self._server_cpu() - self.server_cpu
-        if self.redis is not None and self.counters is not None:
-            self.counters = difference(redis_counters(self.redis), self.counters)
-
-    def fill(self, row: LoadRow, overhead: RedisCounters | None) -> LoadRow:
-        """Put the differences, less the readings' own ``overhead``, into ``row``."""
-        row.measurement.server_cpu = self.server_cpu
-        row.measurement.client_cpu = self.client_cpu
-        if self.counters is not None and overhead is not None:
-            own = difference(self.counters, overhead)
-            row.redis_commands = float(own.commands)
-            row.redis_round_trips = float(own.replies)
-            row.redis_cpu = self.counters.cpu_seconds
-            row.redis_calls = own.calls
-        return row
+from bench.load.config import FULL, QUICK, Config
+from bench.load.report import LoadRow, Results, render, sessions_label, to_json
+from bench.load.sessions import Clip, Load, run_sessions, synthetic_clip
+from bench.serving.server import Server, running_servers
+from bench.serving.stats import Measurement, metered, together
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,6 +61,27 @@ class Deployment:
     overhead: RedisCounters | None = None
 
 
+@contextlib.contextmanager
+def redis_counted(row: LoadRow, deployment: Deployment) -> Iterator[None]:
+    """Put the Redis counters over the block into ``row`` (nothing without Redis).
+
+    Redis is read on one open connection; what the readings themselves add
+    (the first ``INFO`` and its reply) is measured once and subtracted.
+    """
+    client, overhead = deployment.redis, deployment.overhead
+    if client is None or overhead is None:
+        yield
+        return
+    before = redis_counters(client)
+    yield
+    counters = difference(redis_counters(client), before)
+    own = difference(counters, overhead)
+    row.redis_commands = float(own.commands)
+    row.redis_round_trips = float(own.replies)
+    row.redis_cpu = counters.cpu_seconds
+    row.redis_calls = own.calls
+
+
 def measure(deployment: Deployment, clip: Clip, load: Load) -> LoadRow:
     """One row: ``load`` on ``deployment``."""
     store, servers = deployment.store, deployment.servers
@@ -126,14 +89,20 @@ def measure(deployment: Deployment, clip: Clip, load: Load) -> LoadRow:
         f"{store}, {len(servers)} replica(s): {sessions_label(load.sessions)} x "
         f"<= {load.frames_per_session} frames, <= {load.seconds:g} s"
     )
-    meter = Meter(servers, deployment.redis)
-    measured: Measurement = run_sessions(servers, clip, load, meter.start, meter.stop)
-    measured.name = f"{store}, {len(servers)} replica(s), {sessions_label(load.sessions)}"
+    name = f"{store}, {len(servers)} replica(s), {sessions_label(load.sessions)}"
+    measured = Measurement(name, "frames", clients=load.sessions)
+    row = LoadRow(store, len(servers), measured)
+
+    def timed() -> AbstractContextManager[object]:
+        pids = [s.pid for s in servers]
+        return together(redis_counted(row, deployment), metered(measured, pids))
+
+    run_sessions(servers, clip, load, measured, timed)
     log(
         f"  {measured.items} frames, {measured.rate:.1f} frames/s, p50 "
         f"{measured.p(50):.1f} ms, p99 {measured.p(99):.1f} ms, errors {measured.errors}"
     )
-    return meter.fill(LoadRow(store, len(servers), measured), deployment.overhead)
+    return row
 
 
 def interleaved(deployments: Sequence[Deployment], clip: Clip, config: Config) -> list[LoadRow]:
@@ -156,20 +125,6 @@ def interleaved(deployments: Sequence[Deployment], clip: Clip, config: Config) -
                 else:
                     pooled[i, sessions] = row
     return [pooled[i, s] for i in range(len(deployments)) for s in config.sessions]
-
-
-def redis_version() -> str:
-    """``redis-server X.Y.Z`` (``redis-server ?`` when it does not say)."""
-    try:
-        text = subprocess.run(
-            ["redis-server", "--version"], capture_output=True, text=True, timeout=10, check=True
-        ).stdout
-    except (OSError, subprocess.SubprocessError):
-        return "redis-server ?"
-    for part in text.split():
-        if part.startswith("v="):
-            return f"redis-server {part[2:]}"
-    return "redis-server ?"
 
 
 def notes_for(
@@ -196,7 +151,7 @@ def notes_for(
         "sessions are created through replica (i + 1) mod R and streamed from replica "
         "i mod R: with 2 replicas every session is made on one and tracked on the other",
         f"replica settings: EFDM_WORKERS {workers}, EFDM_STREAM_COMMIT_EVERY {commit}, "
-        "log level warning; one process each (`python -m engine.cli serve`)",
+        "log level warning; one process each (`python -m efdm_cli serve`)",
         "Redis counters include the replicas' housekeeping during the timed part (new pool "
         "connections' HELLO / CLIENT SETINFO, health-check PINGs, the minutely expiry sweep)",
         "replica start-up (spawn to /readyz) in s: " + ", ".join(f"{s:.1f}" for s in starts),
@@ -204,16 +159,17 @@ def notes_for(
     ]
 
 
-def run(config: Config) -> Results:
+def run(config: Config, args: argparse.Namespace) -> Results:
     """Start the processes, measure every row, stop them."""
     start = time.perf_counter()
     load_before = load_average()
     clip = synthetic_clip(config.clip_length, config.nodes)
     log(f"{clip.name}: {len(clip.frames)} frames, {clip.mean_bytes / 1024:.1f} KiB/frame")
     with contextlib.ExitStack() as stack:
-        memory = stack.enter_context(running_replicas(1, {}))
+        memory = stack.enter_context(running_servers(1, {}, "/readyz"))
         shared = stack.enter_context(running_redis())
-        pair = stack.enter_context(running_replicas(2, {"EFDM_REDIS_URL": shared.url}))
+        redis_env = {"EFDM_REDIS_URL": shared.url}
+        pair = stack.enter_context(running_servers(2, redis_env, "/readyz"))
         client = stack.enter_context(redis.Redis.from_url(shared.url, socket_timeout=10.0))
         starts = [s.start_seconds for s in [*memory.servers, *pair.servers]]
         log(f"up: 1 in-memory replica, redis-server at {shared.url}, 2 Redis replicas")
@@ -233,27 +189,10 @@ def run(config: Config) -> Results:
     )
     results = Results(config, machine, rows, notes_for(clip, exits, starts, config))
     results.wall_seconds = time.perf_counter() - start
+    failed = sum(r.measurement.errors for r in rows)
+    if failed or any(not math.isfinite(r.measurement.rate) for r in rows):
+        log(f"{failed} error(s) or an empty row: see the table")
     return results
 
 
-def write_outputs(results: Results, out: Path) -> str:
-    """Write ``load.md`` and ``load.json`` into ``out``; return the report."""
-    report = render(results)
-    write_results(out, "load", report, to_json(results))
-    return report
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the benchmark, print the report, write the result files."""
-    args = quick_and_out(__doc__, DEFAULT_OUT, argv)
-    results = run(QUICK if args.quick else FULL)
-    print(write_outputs(results, args.out), end="")
-    log(f"wrote {args.out / 'load.md'} and load.json ({results.wall_seconds:.0f} s)")
-    failed = sum(r.measurement.errors for r in results.rows)
-    if failed or any(not math.isfinite(r.measurement.rate) for r in results.rows):
-        log(f"{failed} error(s) or an empty row: see the table")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+BENCHMARK = Benchmark("load", __doc__, FULL, QUICK, run, render, to_json)

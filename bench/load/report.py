@@ -3,55 +3,13 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
-from _load_clients import Load
-from _service_report import finite, fmt, plural
-from _service_stats import Measurement
-
-
-@dataclass(frozen=True, slots=True)
-class Config:
-    """What to run.
-
-    Attributes
-    ----------
-    name : str
-        ``"full"`` or ``"quick"``.
-    sessions : tuple of int
-        Concurrent WebSocket sessions per row.
-    frames_per_row : int
-        Frame budget of a row per round, shared by its sessions ...
-    min_frames_per_session : int
-        ... but at least this many per session.
-    row_seconds : float
-        Time limit of a row's timed part (per round).
-    rounds : int
-        Times every row runs (pooled), the deployments taking turns.
-    clip_length : int
-        Frames of the synthetic clip (played forward, then back).
-    nodes : int
-        Contour nodes of every session.
-    """
-
-    name: str
-    sessions: tuple[int, ...]
-    frames_per_row: int
-    min_frames_per_session: int
-    row_seconds: float
-    rounds: int
-    clip_length: int
-    nodes: int
-
-    def load(self, sessions: int) -> Load:
-        """The load of the row with ``sessions`` sessions."""
-        each = max(self.min_frames_per_session, self.frames_per_row // sessions)
-        return Load(sessions, each, self.row_seconds)
-
-
-FULL = Config("full", (1, 10, 100), 1000, 10, 12.0, 2, 40, 64)
-QUICK = Config("quick", (1, 4), 40, 5, 4.0, 1, 8, 64)
+from bench.common.output import finite, run_json
+from bench.common.report import fmt, header, load_line, plural
+from bench.load.config import Config
+from bench.serving.stats import Measurement
 
 
 @dataclass(slots=True)
@@ -113,7 +71,7 @@ def _line(row: LoadRow) -> str:
         str(row.replicas),
         str(m.clients),
         f"{m.items}/{m.sent}",
-        fmt(m.rate),
+        fmt(m.rate, ".1f"),
         fmt(m.p(50), ".1f"),
         fmt(m.p(99), ".1f"),
         str(m.dropped),
@@ -131,13 +89,13 @@ def render(results: Results) -> str:
     """The markdown report."""
     m, c = results.machine, results.config
     lines = [
-        "# Load benchmark: concurrent WebSocket sessions, 1 and 2 replicas",
-        "",
-        f"- date: {m['date']}",
-        f"- machine: {m['platform']}; CPU {m['cpu']}; **{m['cpu_count']} CPUs shared by "
-        "everything**: the replicas, redis-server and the benchmark's client (all traffic "
-        "on 127.0.0.1), so adding a replica adds no cores",
-        f"- load average (1, 5, 15 min) before: {m['load_before']}; after: {m['load_after']}",
+        *header(
+            "Load benchmark: concurrent WebSocket sessions, 1 and 2 replicas",
+            m,
+            f"**{m['cpu_count']} CPUs shared by everything**: the replicas, redis-server and the "
+            "benchmark's client (all traffic on 127.0.0.1), so adding a replica adds no cores",
+            load_line(m),
+        ),
         f"- python {m['python']}, uvicorn {m['uvicorn']}, fastapi {m['fastapi']}, websockets "
         f"{m['websockets']}, redis-py {m['redis']}, {m['redis_server']}",
         f"- run: `{c.name}`, {results.wall_seconds:.0f} s wall; rows of "
@@ -198,9 +156,7 @@ def row_json(row: LoadRow) -> dict[str, Any]:
 def to_json(results: Results) -> dict[str, Any]:
     """Everything of the run as plain JSON data."""
     return {
-        "config": asdict(results.config),
-        "machine": results.machine,
-        "wall_seconds": results.wall_seconds,
+        **run_json(results),
         "rows": [row_json(r) for r in results.rows],
         "notes": results.notes,
         "units": {"latencies_ms": "send to result", "cpu": "seconds over the timed part"},

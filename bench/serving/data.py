@@ -2,7 +2,7 @@
 
 DAVIS-2016 frames are used as they are on disk (the JPEG files' bytes, so the
 service and the in-process baseline decode exactly the same data).  Without
-the DAVIS subset, ``engine.synthetic`` sequences are encoded as JPEG instead.
+the DAVIS subset, ``engine.testing.synthetic`` sequences are encoded as JPEG instead.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from _tracking_data import DAVIS_ROOT, davis_names, load_synthetic, read_image
+from bench.common.data import DAVIS_ROOT, davis_names, load_synthetic, read_image
 from engine.geometry import mask_to_contour
 
 NODES = 128
@@ -87,7 +87,7 @@ def encode(frame: np.ndarray[tuple[int, ...], np.dtype[np.uint8]]) -> bytes:
 
 
 def load_synthetic_jpeg(name: str, length: int) -> JpegClip:
-    """One ``engine.synthetic`` sequence (480 x 640), JPEG-encoded."""
+    """One ``engine.testing.synthetic`` sequence (480 x 640), JPEG-encoded."""
     clip = load_synthetic(name, length)
     nodes = mask_to_contour(clip.masks[0], NODES).tolist()
     frames = tuple(encode(f) for f in clip.frames)
@@ -111,7 +111,7 @@ def load_clips(limit: int | None, synthetic_length: int) -> tuple[list[JpegClip]
         return clips, [f"frames: DAVIS-2016 {', '.join(wanted)} (JPEG files as stored)"]
     note = (
         f"DAVIS-2016 {', '.join(DAVIS_CLIPS)} not found at {DAVIS_ROOT}: using "
-        f"engine.synthetic sequences {', '.join(SYNTHETIC_CLIPS)} (480 x 640, JPEG "
+        f"engine.testing.synthetic sequences {', '.join(SYNTHETIC_CLIPS)} (480 x 640, JPEG "
         f"quality {JPEG_QUALITY}) instead"
     )
     return [load_synthetic_jpeg(name, synthetic_length) for name in SYNTHETIC_CLIPS], [note]

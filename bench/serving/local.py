@@ -11,15 +11,15 @@ import time
 import cv2
 import numpy as np
 
-from _service_data import JpegClip
-from _service_stats import FrameRun, Measurement, metered
+from bench.serving.data import JpegClip
+from bench.serving.stats import FrameRun, Measurement, metered
 from engine import Tracker, deform
 
 LOCAL = "in-process (imdecode + Tracker.step)"
 
 
-def run_local(clip: JpegClip, deadline: float) -> FrameRun:
-    """Track ``clip`` in-process until done or ``deadline`` (``time.monotonic``).
+def run_local(clip: JpegClip, seconds: float) -> FrameRun:
+    """Track ``clip`` in-process until done or ``seconds`` have passed.
 
     Returns
     -------
@@ -29,7 +29,8 @@ def run_local(clip: JpegClip, deadline: float) -> FrameRun:
     row = Measurement(LOCAL, "frames")
     run = FrameRun(row)
     tracker = Tracker(clip.nodes)
-    with metered(row, None):
+    deadline = time.monotonic() + seconds
+    with metered(row, ()):
         start = time.perf_counter()
         for data in clip.frames:
             if time.monotonic() > deadline:
@@ -41,7 +42,7 @@ def run_local(clip: JpegClip, deadline: float) -> FrameRun:
             t2 = time.perf_counter()
             row.latencies_ms.append((t2 - t0) * 1e3)
             row.server_ms.append((t2 - t1) * 1e3)
-            run.nodes.append(result.nodes.tolist())
+            run.nodes.append(np.array(result.nodes, dtype=np.float64))
             row.sent += 1
             row.items += 1
         row.seconds = time.perf_counter() - start

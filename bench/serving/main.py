@@ -2,53 +2,56 @@
 
 One run measures side by side, on the same 480p JPEG frames (DAVIS-2016
 blackswan and dog, initial contour from the first mask, 128 nodes; else
-``engine.synthetic`` sequences):
+``engine.testing.synthetic`` sequences):
 
 - in-process: ``cv2.imdecode`` + ``Tracker.step`` per frame (the service
   must decode too);
 - one WebSocket session, closed loop (next frame when the previous result
-  arrived), offering permessage-deflate (the client default) or not; and open loop (frames on a
+  arrived), offering permessage-deflate (as the ``websockets`` library does
+  by default) or not (as ``service.client`` does); and open loop (frames on a
   clock faster than tracking, so the server drops some);
 - several concurrent WebSocket sessions, each closed loop;
 - REST ``/frames`` for one session, closed loop;
 - REST ``/forces`` (256 nodes) from 1 and 8 concurrent httpx clients, and from
   ``wrk`` when installed.
 
-The server runs as a subprocess (``python -m engine.cli serve``) on a free
+The service rows talk to the server through the project's client
+(``service.client``; see :mod:`bench.serving.client` for the little it adds).
+The server runs as a subprocess (``python -m efdm_cli serve``) on a free
 127.0.0.1 port and is always terminated at the end.  Every loop is bounded
-in count and time.  Run ``python bench/service.py`` (``make bench-service``);
+in count and time.  Run ``python -m bench.serving`` (``make bench-service``);
 ``--quick`` for a smoke test, ``--out DIR`` for where ``service.md`` and
 ``service.json`` go (default ``bench/results/``).  Progress goes to stderr.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import math
-import sys
 import time
-from collections.abc import Callable, Sequence
-from pathlib import Path
+from collections.abc import Callable
 
 import cv2
 
-import _machine
 import engine
-from _machine import load_average
-from _output import quick_and_out, write_results
-from _service_data import JpegClip, load_clips
-from _service_http import ForcesLoad, rest_forces, rest_frames
-from _service_local import LOCAL, forces_payload, local_deform_ms, run_local
-from _service_report import FULL, QUICK, Config, Results, plural, render, to_json
-from _service_server import Server, running_server
-from _service_stats import FrameRun, Measurement, log, max_difference
-from _service_wrk import available as wrk_path
-from _service_wrk import wrk_forces
-from _service_ws import StreamSpec, ws_closed_loop, ws_concurrent, ws_open_loop
+from bench.common import machine
+from bench.common.benchmark import Benchmark
+from bench.common.log import log
+from bench.common.machine import load_average
+from bench.common.report import plural
+from bench.serving.config import FULL, QUICK, Config
+from bench.serving.data import JpegClip, load_clips
+from bench.serving.local import LOCAL, forces_payload, local_deform_ms, run_local
+from bench.serving.report import Results, render, to_json
+from bench.serving.rest import ForcesLoad, rest_forces, rest_frames
+from bench.serving.server import Server, running_servers
+from bench.serving.stats import FrameRun, Measurement, max_difference
+from bench.serving.wrk import available as wrk_path
+from bench.serving.wrk import wrk_forces
+from bench.serving.ws import StreamSpec, ws_closed_loop, ws_concurrent, ws_open_loop
 
-REPO = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = REPO / "bench" / "results"
-WS = "WebSocket, closed loop (deflate offered: client default)"
+WS = "WebSocket, closed loop (deflate offered: websockets' default)"
 WS_PLAIN = "WebSocket, closed loop (no compression offered)"
 REST = "REST /frames, closed loop"
 SINGLE = (LOCAL, WS, WS_PLAIN, REST)
@@ -56,7 +59,7 @@ SINGLE = (LOCAL, WS, WS_PLAIN, REST)
 
 def machine_info() -> dict[str, str]:
     """Platform, CPU, library versions and the date."""
-    return _machine.machine_info(
+    return machine.machine_info(
         ("uvicorn", "fastapi", "websockets", "httpx"),
         opencv=cv2.__version__,
         cv_threads=str(cv2.getNumThreads()),
@@ -69,33 +72,26 @@ def head(clip: JpegClip, count: int) -> JpegClip:
     return dataclasses.replace(clip, frames=clip.frames[:count])
 
 
-def deadline(config: Config) -> float:
-    """``time.monotonic()`` at which the current measurement must stop."""
-    return time.monotonic() + config.row_seconds
-
-
 def warm_up(server: Server, clips: list[JpegClip], config: Config) -> list[float]:
     """Untimed first frames everywhere; returns the server's cold-start latencies (ms)."""
     engine.warm_up()
-    cold = ws_closed_loop(
-        server, head(clips[0], 3), StreamSpec("cold", "deflate", deadline(config))
-    )
+    seconds = config.row_seconds
+    cold = ws_closed_loop(server, head(clips[0], 3), StreamSpec("cold", "deflate", seconds))
     for clip in clips:
-        run_local(head(clip, 4), deadline(config))
-        ws_closed_loop(server, head(clip, 4), StreamSpec("warm", None, deadline(config)))
-        rest_frames(server, head(clip, 2), "warm", deadline(config))
+        run_local(head(clip, 4), seconds)
+        ws_closed_loop(server, head(clip, 4), StreamSpec("warm", None, seconds))
+        rest_frames(server, head(clip, 2), "warm", seconds)
     return cold.measurement.latencies_ms
 
 
 def one_round(server: Server, clip: JpegClip, config: Config, turn: int) -> dict[str, FrameRun]:
     """The single-session rows on one clip, one after another, starting at row ``turn``."""
+    seconds = config.row_seconds
     measure: dict[str, Callable[[], FrameRun]] = {
-        LOCAL: lambda: run_local(clip, deadline(config)),
-        WS: lambda: ws_closed_loop(server, clip, StreamSpec(WS, "deflate", deadline(config))),
-        WS_PLAIN: lambda: ws_closed_loop(
-            server, clip, StreamSpec(WS_PLAIN, None, deadline(config))
-        ),
-        REST: lambda: rest_frames(server, clip, REST, deadline(config)),
+        LOCAL: lambda: run_local(clip, seconds),
+        WS: lambda: ws_closed_loop(server, clip, StreamSpec(WS, "deflate", seconds)),
+        WS_PLAIN: lambda: ws_closed_loop(server, clip, StreamSpec(WS_PLAIN, None, seconds)),
+        REST: lambda: rest_frames(server, clip, REST, seconds),
     }
     order = [*SINGLE[turn % len(SINGLE) :], *SINGLE[: turn % len(SINGLE)]]
     return {name: measure[name]() for name in order}
@@ -124,7 +120,8 @@ def open_loop(server: Server, clips: list[JpegClip], rate: float, config: Config
     row = Measurement(name, "frames")
     for _ in range(config.rounds):
         for clip in clips:
-            row.add(ws_open_loop(server, clip, rate, StreamSpec(name, "deflate", deadline(config))))
+            spec = StreamSpec(name, "deflate", config.row_seconds)
+            row.add(ws_open_loop(server, clip, rate, spec))
     return row
 
 
@@ -135,7 +132,7 @@ def concurrent(server: Server, clips: list[JpegClip], config: Config) -> list[Me
     for sessions in config.sessions:
         log(f"{sessions} concurrent WebSocket sessions, {config.session_frames} frames each")
         name = f"WebSocket, {sessions} sessions, closed loop (deflate offered)"
-        spec = StreamSpec(name, "deflate", deadline(config))
+        spec = StreamSpec(name, "deflate", config.row_seconds)
         rows.append(ws_concurrent(server, short, sessions, spec))
     return rows
 
@@ -170,6 +167,8 @@ def notes_for(results: Results, clips: list[JpegClip], server_notes: list[str]) 
     notes = [
         *server_notes,
         f"clips: {sizes}; the service rows track the same frames from the same contour",
+        "the service rows use the project's client, service.client (bench/serving/client.py "
+        "adds the compression offer and the open loop's raw socket)",
         f"single-session rows take turns clip by clip ({plural(c.rounds, 'round')}, the order "
         "rotating) so that they see the same machine state; timings are only as quiet as "
         "the machine (see the load averages)",
@@ -190,14 +189,15 @@ def notes_for(results: Results, clips: list[JpegClip], server_notes: list[str]) 
     return notes
 
 
-def run(config: Config) -> Results:
+def run(config: Config, args: argparse.Namespace) -> Results:
     """Start the server, measure every row, stop the server."""
     start = time.perf_counter()
     load_before = load_average()
     clips, data_notes = load_clips(config.frames, config.synthetic_length)
     log(data_notes[0])
     deform_ms = local_deform_ms(config.forces_nodes, 200)
-    with running_server() as server:
+    with running_servers() as servers:
+        server = servers.servers[0]
         log(f"efdm serve up at {server.url} in {server.start_seconds:.1f} s")
         cold = warm_up(server, clips, config)
         pooled, worst = single_sessions(server, clips, config)
@@ -231,21 +231,4 @@ def run(config: Config) -> Results:
     return results
 
 
-def write_outputs(results: Results, out: Path) -> str:
-    """Write ``service.md`` and ``service.json`` into ``out``; return the report."""
-    report = render(results)
-    write_results(out, "service", report, to_json(results))
-    return report
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the benchmark, print the report, write the result files."""
-    args = quick_and_out(__doc__, DEFAULT_OUT, argv)
-    results = run(QUICK if args.quick else FULL)
-    print(write_outputs(results, args.out), end="")
-    log(f"wrote {args.out / 'service.md'} and service.json ({results.wall_seconds:.0f} s)")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+BENCHMARK = Benchmark("serving", __doc__, FULL, QUICK, run, render, to_json, stem="service")

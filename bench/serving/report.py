@@ -3,64 +3,16 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
-from _service_stats import Measurement, median, paired_overhead
+from bench.common.output import finite, run_json
+from bench.common.report import GoalLine, fmt, goals_json, goals_table, header, load_line, plural
+from bench.serving.config import Config
+from bench.serving.stats import Measurement, median, paired_overhead
 
 WS_RATIO_GOAL = 0.70
 FORCES_GOAL = 1000.0
-
-
-@dataclass(frozen=True, slots=True)
-class Config:
-    """What to run.
-
-    Attributes
-    ----------
-    name : str
-        ``"full"`` or ``"quick"``.
-    frames : int or None
-        Frames per clip (None: all).
-    rounds : int
-        Rounds of the single-session rows, interleaved so they see the same machine.
-    open_rate_factor : float
-        Open-loop sending rate as a multiple of the fastest single-session frames/s.
-    sessions : tuple of int
-        Concurrent WebSocket sessions to try.
-    session_frames : int
-        Frames each concurrent session streams.
-    forces_clients : tuple of int
-        Concurrent ``/forces`` clients to try.
-    forces_requests, forces_warmup : int
-        Timed requests per ``/forces`` row (split among clients); untimed ones per client.
-    forces_nodes : int
-        Nodes of the ``/forces`` sessions.
-    wrk_seconds : float
-        Duration of each ``wrk`` run.
-    row_seconds : float
-        Time limit of any one measurement.
-    synthetic_length : int
-        Frames per synthetic clip (used without DAVIS).
-    """
-
-    name: str
-    frames: int | None
-    rounds: int
-    open_rate_factor: float
-    sessions: tuple[int, ...]
-    session_frames: int
-    forces_clients: tuple[int, ...]
-    forces_requests: int
-    forces_warmup: int
-    forces_nodes: int
-    wrk_seconds: float
-    row_seconds: float
-    synthetic_length: int
-
-
-FULL = Config("full", None, 3, 2.0, (4, 16), 30, (1, 8), 4000, 50, 256, 4.0, 30.0, 40)
-QUICK = Config("quick", 6, 1, 2.0, (2,), 4, (1, 2), 60, 5, 256, 1.0, 10.0, 6)
 
 
 @dataclass(slots=True)
@@ -85,34 +37,6 @@ class Results:
     wall_seconds: float = 0.0
 
 
-@dataclass(frozen=True, slots=True)
-class GoalLine:
-    """One goal: what was measured against what was wanted."""
-
-    goal: str
-    measured: float
-    shown: str
-    threshold: float
-    target: str
-
-    @property
-    def verdict(self) -> str:
-        """``PASS``, ``FAIL`` or ``NOT RUN``."""
-        if not math.isfinite(self.measured):
-            return "NOT RUN"
-        return "PASS" if self.measured >= self.threshold else "FAIL"
-
-
-def fmt(value: float, spec: str = ".1f") -> str:
-    """A number for the tables (``-`` when not measured)."""
-    return format(value, spec) if math.isfinite(value) else "-"
-
-
-def plural(count: int, noun: str) -> str:
-    """``1 client``, ``8 clients``."""
-    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
-
-
 def ratio(row: Measurement, local: Measurement) -> float:
     """A frames row's rate over the in-process rate (NaN for requests rows)."""
     if row.kind != "frames" or not math.isfinite(local.rate):
@@ -134,15 +58,16 @@ def goals(results: Results) -> list[GoalLine]:
     forces = best.rate if best is not None else math.nan
     where = f" ({best.name}, {plural(best.clients, 'client')})" if best is not None else ""
     return [
-        GoalLine(
+        GoalLine.at_least(
             "WebSocket closed loop fps / in-process fps (1 session)",
             share,
-            f"{fmt(100 * share, '.0f')} % ({fmt(results.ws.rate)} vs {fmt(results.local.rate)} "
-            f"fps; no compression offered: {fmt(100 * plain, '.0f')} %)",
+            f"{fmt(100 * share, '.0f')} % ({fmt(results.ws.rate, '.1f')} vs "
+            f"{fmt(results.local.rate, '.1f')} fps; no compression offered: "
+            f"{fmt(100 * plain, '.0f')} %)",
             WS_RATIO_GOAL,
             f">= {100 * WS_RATIO_GOAL:.0f} %",
         ),
-        GoalLine(
+        GoalLine.at_least(
             f"REST /forces requests/s ({results.config.forces_nodes} nodes, best client)",
             forces,
             f"{fmt(forces, '.0f')}{where}",
@@ -159,7 +84,7 @@ def _row_line(row: Measurement, local: Measurement) -> str:
         row.name,
         str(row.clients),
         f"{row.items}/{row.sent}",
-        f"{fmt(row.rate)} {unit}" if math.isfinite(row.rate) else "-",
+        f"{fmt(row.rate, '.1f')} {unit}" if math.isfinite(row.rate) else "-",
         f"{fmt(100 * share, '.0f')} %" if math.isfinite(share) else "",
         fmt(row.p(50), ".2f"),
         fmt(row.p(95), ".2f"),
@@ -217,26 +142,20 @@ def breakdown(results: Results) -> dict[str, float]:
 def render(results: Results) -> str:
     """The markdown report."""
     m, c = results.machine, results.config
-    lines = [
-        "# Service overhead benchmark",
-        "",
-        f"- date: {m['date']}",
-        f"- machine: {m['platform']}; CPU {m['cpu']}; {m['cpu_count']} CPUs shared by the "
-        "server and the benchmark's clients (all traffic on 127.0.0.1)",
-        f"- load average (1, 5, 15 min) before: {m['load_before']}; after: {m['load_after']}",
+    lines = header(
+        "Service overhead benchmark",
+        m,
+        f"{m['cpu_count']} CPUs shared by the server and the benchmark's clients (all traffic "
+        "on 127.0.0.1)",
+        load_line(m),
         f"- python {m['python']}, numpy {m['numpy']}, opencv {m['opencv']} "
         f"({m['cv_threads']} OpenCV threads), uvicorn {m['uvicorn']}, fastapi {m['fastapi']}, "
         f"websockets {m['websockets']}, httpx {m['httpx']}, wrk {m['wrk']}",
         f"- run: `{c.name}`, {plural(c.rounds, 'interleaved round')}, "
-        f"{results.wall_seconds:.0f} s wall; server `python -m engine.cli serve` started "
+        f"{results.wall_seconds:.0f} s wall; server `python -m efdm_cli serve` started "
         f"in {m['server_start']} s",
-        "",
-        "## Goals",
-        "",
-        "| goal | measured | target | result |",
-        "|---|---|---|---|",
-    ]
-    lines += [f"| {g.goal} | {g.shown} | {g.target} | {g.verdict} |" for g in goals(results)]
+    )
+    lines += ["", "## Goals", "", goals_table(goals(results))]
     lines += ["", "## Results", "", *results_table(results), ""]
     lines += [
         "Rates are items over wall time; latency is from sending a frame or request to "
@@ -253,11 +172,6 @@ def render(results: Results) -> str:
     lines += ["", "## Notes", ""]
     lines += [f"- {note}" for note in results.notes]
     return "\n".join(lines) + "\n"
-
-
-def finite(value: float) -> float | None:
-    """A float for JSON (non-finite: None)."""
-    return value if math.isfinite(value) else None
 
 
 def row_json(row: Measurement) -> dict[str, Any]:
@@ -287,18 +201,8 @@ def row_json(row: Measurement) -> dict[str, Any]:
 def to_json(results: Results) -> dict[str, Any]:
     """Everything of the run as plain JSON data."""
     return {
-        "config": asdict(results.config),
-        "machine": results.machine,
-        "wall_seconds": results.wall_seconds,
-        "goals": [
-            {
-                "goal": g.goal,
-                "measured": finite(g.measured),
-                "target": g.target,
-                "result": g.verdict,
-            }
-            for g in goals(results)
-        ],
+        **run_json(results),
+        "goals": goals_json(goals(results)),
         "rows": [row_json(r) for r in results.rows],
         "breakdown_ms": {k: finite(v) for k, v in breakdown(results).items()},
         "max_node_difference_vs_in_process": {k: finite(v) for k, v in results.consistency.items()},

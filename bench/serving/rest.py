@@ -1,9 +1,15 @@
-"""REST clients for the service benchmark: ``/frames`` and ``/forces`` over httpx.
+"""REST rows of the service benchmark: ``/frames`` and ``/forces``.
 
-Each client keeps one keep-alive connection (``httpx.Client``).  Concurrent
-``/forces`` clients are threads, each with its own connection and session,
-released together by a barrier.  Every loop stops at its request count or
-its deadline, whichever comes first.
+``/frames`` goes through the project's client (:meth:`service.client.Client.track_frame`),
+one session, each frame after the previous answer.  ``/forces`` measures how
+many requests the server answers, with the load generator on the same two
+cores: the sessions are made with the client, but the timed requests POST one
+pre-encoded body over plain ``httpx`` (the bytes ``wrk`` sends too), because
+the client's own encoding and parsing of 256 forces per request would take
+CPU from the server and lower the rate it shows.  Concurrent ``/forces``
+clients are threads, each with its own keep-alive connection and session,
+released together by a barrier.  Every loop stops at its request count or its
+deadline, whichever comes first.
 """
 
 from __future__ import annotations
@@ -14,46 +20,42 @@ from dataclasses import dataclass
 
 import httpx
 
-from _service_data import JpegClip
-from _service_server import Server, create_circle_session, create_session
-from _service_stats import FrameRun, Measurement, handler_timed, metered
+from bench.serving.data import JpegClip
+from bench.serving.server import TIMEOUT, Server, forces_paths
+from bench.serving.stats import FrameRun, Measurement, handler_timed, metered, together
+from service.client import ApiError, Client, FrameResult
 
-TIMEOUT = 20.0
-JPEG = {"content-type": "image/jpeg"}
 JSON = {"content-type": "application/json"}
 
 
-def rest_frames(server: Server, clip: JpegClip, name: str, deadline: float) -> FrameRun:
+def rest_frames(server: Server, clip: JpegClip, name: str, seconds: float) -> FrameRun:
     """POST every frame of ``clip`` to one session, each after the previous answer."""
     row = Measurement(name, "frames")
     run = FrameRun(row)
-    with httpx.Client(base_url=server.url, timeout=TIMEOUT) as client:
-        path = f"/v1/sessions/{create_session(client, clip.nodes)}/frames"
-        with handler_timed(row, server.url, "rest"), metered(row, server.pid):
-            _post_frames(client, path, clip, deadline, run)
+    deadline = time.monotonic() + seconds
+    with Client(server.url, timeout=TIMEOUT) as client:
+        session = client.create_session(clip.nodes)
+        with together(handler_timed(row, server.url, "rest"), metered(row, [server.pid])):
+            start = time.perf_counter()
+            for data in clip.frames:
+                if time.monotonic() > deadline:
+                    break
+                t0 = time.perf_counter()
+                row.sent += 1
+                result: FrameResult | None
+                try:
+                    result = client.track_frame(session, data)
+                except ApiError:
+                    result = None
+                row.latencies_ms.append((time.perf_counter() - t0) * 1e3)
+                if result is None:
+                    row.errors += 1
+                    continue
+                row.items += 1
+                row.server_ms.append(result.elapsed_ms)
+                run.nodes.append(result.nodes)
+            row.seconds = time.perf_counter() - start
     return run
-
-
-def _post_frames(
-    client: httpx.Client, path: str, clip: JpegClip, deadline: float, run: FrameRun
-) -> None:
-    row = run.measurement
-    start = time.perf_counter()
-    for data in clip.frames:
-        if time.monotonic() > deadline:
-            break
-        t0 = time.perf_counter()
-        response = client.post(path, content=data, headers=JPEG)
-        row.latencies_ms.append((time.perf_counter() - t0) * 1e3)
-        row.sent += 1
-        if response.status_code != 200:
-            row.errors += 1
-            continue
-        body = response.json()
-        row.items += 1
-        row.server_ms.append(float(body["elapsed_ms"]))
-        run.nodes.append(body["nodes"])
-    row.seconds = time.perf_counter() - start
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,12 +91,12 @@ def _forces_client(
 
 def rest_forces(server: Server, load: ForcesLoad, nodes: int, name: str) -> Measurement:
     """``load.clients`` threads, each POSTing ``/forces`` to its own session; wall-clock rate."""
-    clients = [httpx.Client(base_url=server.url, timeout=TIMEOUT) for _ in range(load.clients)]
+    paths = forces_paths(server, load.clients, nodes)
+    clients = [httpx.Client(base_url=server.url, timeout=TIMEOUT) for _ in paths]
     rows = [Measurement(name, "requests") for _ in clients]
     barrier = threading.Barrier(load.clients + 1)
     total = Measurement(name, "requests", clients=load.clients)
     try:
-        paths = [f"/v1/sessions/{create_circle_session(c, nodes)}/forces" for c in clients]
         threads = [
             threading.Thread(target=_forces_client, args=(c, p, load, barrier, r), daemon=True)
             for c, p, r in zip(clients, paths, rows, strict=True)
@@ -102,7 +104,7 @@ def rest_forces(server: Server, load: ForcesLoad, nodes: int, name: str) -> Meas
         for thread in threads:
             thread.start()
         barrier.wait(timeout=TIMEOUT)
-        with metered(total, server.pid):
+        with metered(total, [server.pid]):
             start = time.perf_counter()
             for thread in threads:
                 thread.join(timeout=load.seconds + TIMEOUT)

@@ -1,9 +1,10 @@
-"""A real ``efdm serve`` process on loopback for the service benchmark.
+"""Real ``efdm serve`` processes on loopback, for the service and load benchmarks.
 
-:func:`running_server` starts it on a free 127.0.0.1 port, waits for
-``/healthz`` and always terminates it (then kills it if it lingers).
-:func:`cpu_seconds` reads a process's CPU time from ``/proc`` so the report
-can say how much server CPU one frame or request costs.
+:func:`running_servers` starts them on free 127.0.0.1 ports, waits until each
+answers (``/healthz``, or ``/readyz`` when its store must be reachable too) and
+always stops them (SIGTERM: a graceful shutdown; SIGKILL if they linger).
+Sessions are made with the project's client (:mod:`service.client`);
+:func:`frame_seconds` reads the server's own timing of frames from ``/metrics``.
 """
 
 from __future__ import annotations
@@ -11,22 +12,26 @@ from __future__ import annotations
 import contextlib
 import os
 import re
-import socket
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-REPO = Path(__file__).resolve().parent.parent
-HOST = "127.0.0.1"
+from bench.common import REPO
+from bench.common.processes import HOST, free_port, stop, tail
+from service.client import Client
+
 START_TIMEOUT = 60.0
-STOP_TIMEOUT = 10.0
+TIMEOUT = 20.0
+"""Seconds for any one request of the benchmarks' clients."""
+CIRCLE = ((320.0, 240.0), 100.0)
+"""Centre and radius of the ``/forces`` sessions' circles."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,108 +42,90 @@ class Server:
     ----------
     pid : int
         Process id of the server.
-    url, ws_url : str
-        ``http://127.0.0.1:PORT`` and ``ws://127.0.0.1:PORT``.
+    url : str
+        ``http://127.0.0.1:PORT`` (the client derives the ``ws://`` URLs).
     start_seconds : float
-        From spawning to the first healthy ``/healthz``.
+        From spawning (all the servers started together) to its first ready answer.
     """
 
     pid: int
     url: str
-    ws_url: str
     start_seconds: float
 
 
-def free_port() -> int:
-    """A free TCP port on 127.0.0.1."""
-    with socket.socket() as s:
-        s.bind((HOST, 0))
-        port: int = s.getsockname()[1]
-        return port
+@dataclass(slots=True)
+class Servers:
+    """Running ``efdm serve`` processes, and their exit codes once stopped."""
+
+    servers: list[Server]
+    exit_codes: list[int | None] = field(default_factory=list)
 
 
-def _tail(path: Path, size: int = 2000) -> str:
-    try:
-        return path.read_bytes()[-size:].decode(errors="replace")
-    except OSError:
-        return ""
-
-
-def _wait_healthy(
-    process: subprocess.Popen[bytes], url: str, timeout: float, log_path: Path
-) -> None:
-    deadline = time.monotonic() + timeout
+def _wait_ready(process: subprocess.Popen[bytes], url: str, path: str, log_path: Path) -> None:
+    deadline = time.monotonic() + START_TIMEOUT
     with httpx.Client(base_url=url, timeout=2.0) as client:
         while time.monotonic() < deadline:
             if process.poll() is not None:
-                raise RuntimeError(
-                    f"efdm serve exited with code {process.returncode}: {_tail(log_path)}"
-                )
+                raise RuntimeError(f"efdm serve exited ({process.returncode}): {tail(log_path)}")
             with contextlib.suppress(httpx.HTTPError):
-                if client.get("/healthz").status_code == 200:
+                if client.get(path).status_code == 200:
                     return
             time.sleep(0.05)
-    raise RuntimeError(f"efdm serve not healthy within {timeout:.0f} s: {_tail(log_path)}")
-
-
-def _stop(process: subprocess.Popen[bytes]) -> None:
-    if process.poll() is not None:
-        return
-    process.terminate()
-    try:
-        process.wait(timeout=STOP_TIMEOUT)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait(timeout=STOP_TIMEOUT)
+    raise RuntimeError(f"efdm serve not ready within {START_TIMEOUT:.0f} s: {tail(log_path)}")
 
 
 @contextlib.contextmanager
-def running_server() -> Iterator[Server]:
-    """Run ``python -m engine.cli serve`` on a free loopback port for the block.
+def running_servers(
+    count: int = 1, env: Mapping[str, str] | None = None, ready: str = "/healthz"
+) -> Iterator[Servers]:
+    """``count`` processes of ``python -m efdm_cli serve`` with ``env``, for the block.
 
-    The server's output goes to a temporary file, quoted when it fails to
-    start.  The process is terminated when the block ends, however it ends.
+    They start together; each must answer ``ready`` with 200 (``/readyz``:
+    its store reachable).  Their output goes to temporary files, quoted when
+    one fails to start.  However the block ends they get SIGTERM;
+    :attr:`Servers.exit_codes` records how they ended.
     """
-    port = free_port()
-    env = {**os.environ, "EFDM_LOG_LEVEL": "warning", "EFDM_HOST": HOST}
-    command = [sys.executable, "-m", "engine.cli", "serve", "--host", HOST, "--port", str(port)]
+    base = {**os.environ, "EFDM_LOG_LEVEL": "warning", "EFDM_HOST": HOST, **(env or {})}
     with contextlib.ExitStack() as stack:
-        log_path = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="efdm-serve-")))
-        log_path /= "server.log"
-        sink: Any = stack.enter_context(log_path.open("wb"))
+        folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="efdm-serve-")))
+        started: list[tuple[subprocess.Popen[bytes], int, Path]] = []
+        running = Servers([])
+
+        def stop_all() -> None:
+            running.exit_codes = [stop(process) for process, _, _ in started]
+
+        stack.callback(stop_all)
         start = time.perf_counter()
-        process = subprocess.Popen(command, cwd=REPO, env=env, stdout=sink, stderr=sink)
-        stack.callback(_stop, process)
-        url = f"http://{HOST}:{port}"
-        _wait_healthy(process, url, START_TIMEOUT, log_path)
-        yield Server(process.pid, url, f"ws://{HOST}:{port}", time.perf_counter() - start)
+        for i in range(count):
+            port = free_port()
+            log_path = folder / f"server{i}.log"
+            sink: Any = stack.enter_context(log_path.open("wb"))
+            command = [
+                sys.executable,
+                "-m",
+                "efdm_cli",
+                "serve",
+                "--host",
+                HOST,
+                "--port",
+                str(port),
+            ]
+            process = subprocess.Popen(command, cwd=REPO, env=base, stdout=sink, stderr=sink)
+            started.append((process, port, log_path))
+        for process, port, log_path in started:
+            url = f"http://{HOST}:{port}"
+            _wait_ready(process, url, ready, log_path)
+            running.servers.append(Server(process.pid, url, time.perf_counter() - start))
+        yield running
 
 
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU seconds of a process, all threads (NaN where unknown)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text(encoding="ascii").rsplit(")", 1)[1].split()
-        ticks = os.sysconf("SC_CLK_TCK")
-    except (OSError, ValueError, IndexError):
-        return float("nan")
-    return (int(fields[11]) + int(fields[12])) / ticks
-
-
-def create_session(client: httpx.Client, nodes: list[list[float]]) -> str:
-    """A new closed-contour session starting from ``nodes``; returns its id."""
-    response = client.post("/v1/sessions", json={"nodes": nodes})
-    response.raise_for_status()
-    session_id: str = response.json()["id"]
-    return session_id
-
-
-def create_circle_session(client: httpx.Client, count: int) -> str:
-    """A new session with a circle of ``count`` nodes (for ``/forces``)."""
-    spec = {"circle": {"center": [320.0, 240.0], "radius": 100.0, "count": count}}
-    response = client.post("/v1/sessions", json=spec)
-    response.raise_for_status()
-    session_id: str = response.json()["id"]
-    return session_id
+def forces_paths(server: Server, count: int, nodes: int) -> list[str]:
+    """``/forces`` paths of ``count`` new sessions, each a circle of ``nodes`` nodes."""
+    with Client(server.url, timeout=TIMEOUT) as client:
+        return [
+            f"/v1/sessions/{client.create_session(circle=(*CIRCLE, nodes)).id}/forces"
+            for _ in range(count)
+        ]
 
 
 def frame_seconds(client: httpx.Client, transport: str) -> tuple[float, int]:

@@ -1,6 +1,6 @@
-"""Service benchmark measurements: counts, latencies, CPU time, percentiles.
+"""Service and load benchmark measurements: counts, latencies, CPU time, percentiles.
 
-A :class:`Measurement` is one row of the report (a transport and a number of
+A :class:`Measurement` is one row of a report (a transport and a number of
 clients); rounds of the same row are pooled with :meth:`Measurement.add`.
 """
 
@@ -8,22 +8,19 @@ from __future__ import annotations
 
 import contextlib
 import math
-import sys
 import time
 from collections.abc import Iterator, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 
 import httpx
 import numpy as np
+from numpy.typing import NDArray
 
-from _service_server import cpu_seconds, frame_seconds
+from bench.common.processes import cpu_seconds
+from bench.serving.server import frame_seconds
 
-Nodes = list[list[float]]
-
-
-def log(message: str) -> None:
-    """Progress line on stderr."""
-    print(f"[bench/service] {message}", file=sys.stderr, flush=True)
+Nodes = NDArray[np.float64]
 
 
 def percentile(values: Sequence[float], q: float) -> float:
@@ -61,7 +58,7 @@ class Measurement:
     sent : int
         Frames or requests sent.
     server_cpu, client_cpu : float
-        CPU seconds of the server process and of this process during the row.
+        CPU seconds of the server process(es, together) and of this process during the row.
     handler_seconds, handler_count : float, int
         The server's own timing of the frames (``efdm_frame_seconds`` from
         ``/metrics``: lease, decode, worker thread, step), summed.
@@ -139,21 +136,25 @@ class FrameRun:
 
 
 @contextlib.contextmanager
-def metered(row: Measurement, server_pid: int | None) -> Iterator[None]:
-    """Add the server's and this process's CPU seconds during the block to ``row``.
+def metered(row: Measurement, server_pids: Sequence[int]) -> Iterator[None]:
+    """Add the servers' (together) and this process's CPU seconds during the block to ``row``.
 
-    Without a server (``server_pid`` None) the row's server CPU becomes NaN.
+    Without servers (``server_pids`` empty) the row's server CPU becomes NaN.
     """
-    server_before = cpu_seconds(server_pid) if server_pid is not None else 0.0
+
+    def servers() -> float:
+        return sum(cpu_seconds(pid) for pid in server_pids)
+
+    server_before = servers()
     client_before = time.process_time()
     try:
         yield
     finally:
         row.client_cpu += time.process_time() - client_before
-        if server_pid is None:
-            row.server_cpu = math.nan
+        if server_pids:
+            row.server_cpu += servers() - server_before
         else:
-            row.server_cpu += cpu_seconds(server_pid) - server_before
+            row.server_cpu = math.nan
 
 
 @contextlib.contextmanager
@@ -165,6 +166,15 @@ def handler_timed(row: Measurement, url: str, transport: str) -> Iterator[None]:
         sum_after, count_after = frame_seconds(client, transport)
     row.handler_seconds += sum_after - sum_before
     row.handler_count += count_after - count_before
+
+
+@contextlib.contextmanager
+def together(*managers: AbstractContextManager[object]) -> Iterator[None]:
+    """Enter ``managers`` in order for the block (and leave them in reverse)."""
+    with contextlib.ExitStack() as stack:
+        for manager in managers:
+            stack.enter_context(manager)
+        yield
 
 
 def max_difference(a: Sequence[Nodes], b: Sequence[Nodes]) -> float:

@@ -15,11 +15,10 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-import httpx
-
-from _service_http import ForcesLoad
-from _service_server import Server, cpu_seconds, create_circle_session
-from _service_stats import Measurement
+from bench.common.processes import cpu_seconds
+from bench.serving.rest import ForcesLoad
+from bench.serving.server import Server, forces_paths
+from bench.serving.stats import Measurement
 
 SCRIPT = """
 local body = [==[{body}]==]
@@ -83,11 +82,7 @@ def wrk_forces(server: Server, load: ForcesLoad, nodes: int, name: str) -> Measu
     if binary is None:
         row.note = "wrk not installed (apt-get install -y wrk): skipped"
         return row
-    with httpx.Client(base_url=server.url, timeout=10.0) as client:
-        paths = [
-            f"/v1/sessions/{create_circle_session(client, nodes)}/forces"
-            for _ in range(load.clients)
-        ]
+    paths = forces_paths(server, load.clients, nodes)
     with tempfile.TemporaryDirectory(prefix="efdm-wrk-") as tmp:
         script = Path(tmp) / "forces.lua"
         script.write_text(SCRIPT.format(body=load.body.decode()), encoding="utf-8")

@@ -1,105 +1,207 @@
-"""WebSocket clients of ``WS /v1/sessions/{id}/stream`` for the service benchmark.
+"""WebSocket streams (``WS /v1/sessions/{id}/stream``) for the service and load benchmarks.
 
-Closed loop: the next frame is sent when the previous result arrived, so the
-server drops nothing.  Open loop: frames are sent on a fixed clock, faster
-than they are tracked; the server keeps only the newest waiting frame and
-reports the skipped ones in ``dropped``.  Every wait has a timeout and every
-loop a frame count and a deadline.
+Closed loop (:func:`closed_loops`): :meth:`service.client.AsyncClient.stream`
+with one frame in flight, so the next frame goes when the previous result
+arrived and the server drops nothing.  Sessions are connected (and, if asked,
+warmed up with one untimed frame) first; then they are timed together.  Open
+loop (:func:`ws_open_loop`): frames are sent on a fixed clock, faster than
+they are tracked, while results are received; the server keeps only the
+newest waiting frame and reports the skipped ones in ``dropped``.  Every wait
+has a timeout and every loop a frame count and a deadline.
 """
 
 from __future__ import annotations
 
 import asyncio
-import json
+import math
 import time
+from collections.abc import AsyncIterator, Callable, Iterable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import Any, Literal
 
-import httpx
-from websockets.asyncio.client import ClientConnection, connect
+from websockets.asyncio.client import ClientConnection
+from websockets.exceptions import WebSocketException
 
-from _service_data import JpegClip
-from _service_server import Server, create_session
-from _service_stats import FrameRun, Measurement, handler_timed, metered
+from bench.serving.client import BenchClient, Compression
+from bench.serving.data import JpegClip
+from bench.serving.server import TIMEOUT, Server
+from bench.serving.stats import FrameRun, Measurement, Nodes, handler_timed, metered, together
+from service.client import ApiError
+from service.client._common import parse_message
 
-RECV_TIMEOUT = 20.0
-Compression = Literal["deflate"] | None
+STREAM_ERRORS = (ApiError, TimeoutError, WebSocketException, OSError)
+"""What ends a session's stream early: it counts as one error."""
+Timed = Callable[[], AbstractContextManager[object]]
+"""What to read around the timed part (CPU time, server metrics, Redis counters)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Plan:
+    """One session of :func:`closed_loops`.
+
+    Attributes
+    ----------
+    client : BenchClient
+        The client of the server that streams the session.
+    session : str
+        Session id.
+    frames : iterable of bytes
+        The timed frames, in order (the session stops at their end or the deadline).
+    warm : bytes or None
+        One untimed frame sent before the timed part.
+    """
+
+    client: BenchClient
+    session: str
+    frames: Iterable[bytes]
+    warm: bytes | None = None
+
+
+class _Countdown:
+    """An event set once ``count`` sessions have called :meth:`down`."""
+
+    def __init__(self, count: int) -> None:
+        self.count = count
+        self.zero = asyncio.Event()
+        if count <= 0:
+            self.zero.set()
+
+    def down(self) -> None:
+        self.count -= 1
+        if self.count <= 0:
+            self.zero.set()
+
+
+class _Gate:
+    """Holds every session's frames until all are ready, then times them together."""
+
+    def __init__(self, sessions: int) -> None:
+        self.ready = _Countdown(sessions)  # connected (and warm), or failed
+        self.done = _Countdown(sessions)  # through their frames, or failed
+        self.go = asyncio.Event()
+        self.released = asyncio.Event()  # the timed part is over: sockets may close
+        self.deadline = math.inf
+
+    def open(self, seconds: float) -> None:
+        self.deadline = time.monotonic() + seconds
+        self.go.set()
+
+    def release(self) -> None:
+        self.go.set()
+        self.released.set()
+
+
+async def _session(plan: Plan, gate: _Gate, row: Measurement) -> list[Nodes]:
+    """Stream one plan through the client, counting into ``row``; the tracked contours."""
+    nodes: list[Nodes] = []
+    sent_at: list[float] = []
+    marked: set[str] = set()
+
+    def mark(countdown: _Countdown, name: str) -> None:
+        if name not in marked:
+            marked.add(name)
+            countdown.down()
+
+    async def frames() -> AsyncIterator[bytes]:
+        # The client asks for a frame when the previous result has arrived.
+        if plan.warm is not None:
+            yield plan.warm
+        mark(gate.ready, "ready")
+        await gate.go.wait()
+        for data in plan.frames:
+            if time.monotonic() > gate.deadline:
+                break
+            sent_at.append(time.perf_counter())
+            yield data
+        mark(gate.done, "done")
+        await gate.released.wait()  # keep the socket open until the timed part is over
+
+    try:
+        async for result in plan.client.stream(plan.session, frames()):
+            if not sent_at:
+                continue  # the warm-up frame's result
+            row.latencies_ms.append((time.perf_counter() - sent_at[-1]) * 1e3)
+            row.items += 1
+            row.dropped += result.dropped
+            row.server_ms.append(result.elapsed_ms)
+            nodes.append(result.nodes)
+    except STREAM_ERRORS:
+        row.errors += 1
+    finally:
+        mark(gate.ready, "ready")
+        mark(gate.done, "done")
+        row.sent = len(sent_at)
+    return nodes
+
+
+async def closed_loops(
+    plans: Sequence[Plan], seconds: float, row: Measurement, timed: Timed
+) -> list[list[Nodes]]:
+    """Stream every plan closed loop, all at once, pooled into ``row``.
+
+    The timed part starts when every session is connected and has its warm-up
+    result, runs inside ``timed()``, stops sending after ``seconds`` and ends
+    when the last session has its last result; ``row.seconds`` is its wall
+    time.  Sockets close after it.  A session that fails counts one error.
+
+    Returns
+    -------
+    list of list of Nodes
+        Per session, the contour of every tracked frame.
+    """
+    gate = _Gate(len(plans))
+    parts = [Measurement(row.name, row.kind) for _ in plans]
+    tasks = [
+        asyncio.create_task(_session(plan, gate, part))
+        for plan, part in zip(plans, parts, strict=True)
+    ]
+    try:
+        await gate.ready.zero.wait()
+        with timed():
+            start = time.perf_counter()
+            gate.open(seconds)
+            await gate.done.zero.wait()
+            wall = time.perf_counter() - start
+    finally:
+        gate.release()
+        nodes = await asyncio.gather(*tasks)
+    for part in parts:
+        row.add(part)
+    row.seconds = wall
+    return nodes
 
 
 @dataclass(frozen=True, slots=True)
 class StreamSpec:
-    """How to stream: row name, compression offer and the time limit."""
+    """How to stream: row name, compression offer and the time limit (seconds)."""
 
     name: str
     compression: Compression
-    deadline: float
+    seconds: float
 
 
-def _frame_message(raw: str | bytes, row: Measurement) -> dict[str, Any] | None:
-    message: dict[str, Any] = json.loads(raw)
-    if message.get("type") != "frame":
-        row.errors += 1
-        return None
-    return message
-
-
-async def _open(server: Server, session_id: str, compression: Compression) -> ClientConnection:
-    url = f"{server.ws_url}/v1/sessions/{session_id}/stream"
-    return await connect(url, compression=compression, max_size=2**22, open_timeout=10)
-
-
-def negotiated(ws: ClientConnection, compression: Compression) -> str:
-    """What came of the compression offer, for the report's notes."""
-    if compression is None:
-        return "no compression offered"
-    response = ws.response
-    accepted = response is not None and "permessage-deflate" in response.headers.get(
-        "Sec-WebSocket-Extensions", ""
-    )
-    if accepted:
-        return "permessage-deflate offered and accepted: frames travel compressed"
-    return "permessage-deflate offered, the server declined: frames travel uncompressed"
-
-
-def _new_session(server: Server, clip: JpegClip) -> str:
-    with httpx.Client(base_url=server.url, timeout=10.0) as client:
-        return create_session(client, clip.nodes)
-
-
-async def _closed_loop(
-    ws: ClientConnection, clip: JpegClip, spec: StreamSpec, row: Measurement
-) -> FrameRun:
-    run = FrameRun(row)
-    start = time.perf_counter()
-    for data in clip.frames:
-        if time.monotonic() > spec.deadline:
-            break
-        t0 = time.perf_counter()
-        await ws.send(data)
-        row.sent += 1
-        raw = await asyncio.wait_for(ws.recv(), RECV_TIMEOUT)
-        row.latencies_ms.append((time.perf_counter() - t0) * 1e3)
-        message = _frame_message(raw, row)
-        if message is not None:
-            row.items += 1
-            row.dropped += int(message["dropped"])
-            row.server_ms.append(float(message["elapsed_ms"]))
-            run.nodes.append(message["nodes"])
-    row.seconds = time.perf_counter() - start
-    return run
+def _client(server: Server, spec: StreamSpec) -> BenchClient:
+    return BenchClient(server.url, compression=spec.compression, timeout=TIMEOUT)
 
 
 async def _stream_closed(server: Server, clip: JpegClip, spec: StreamSpec) -> FrameRun:
-    session_id = await asyncio.to_thread(_new_session, server, clip)
-    row = Measurement(spec.name, "frames")
-    async with await _open(server, session_id, spec.compression) as ws:
-        row.note = negotiated(ws, spec.compression)
-        with handler_timed(row, server.url, "websocket"), metered(row, server.pid):
-            return await _closed_loop(ws, clip, spec, row)
+    client = _client(server, spec)  # bound first: AsyncClient.__aenter__ returns AsyncClient
+    async with client:
+        session = await client.create_session(clip.nodes)
+        row = Measurement(spec.name, "frames")
+
+        def timed() -> AbstractContextManager[object]:
+            return together(handler_timed(row, server.url, "websocket"), metered(row, [server.pid]))
+
+        [nodes] = await closed_loops(
+            [Plan(client, session.id, clip.frames)], spec.seconds, row, timed
+        )
+        row.note = client.negotiated
+    return FrameRun(row, nodes)
 
 
 def ws_closed_loop(server: Server, clip: JpegClip, spec: StreamSpec) -> FrameRun:
-    """One session streaming ``clip`` closed-loop (connection set-up not timed)."""
+    """One session streaming ``clip`` closed loop (connection set-up not timed)."""
     return asyncio.run(_stream_closed(server, clip, spec))
 
 
@@ -107,26 +209,13 @@ async def _concurrent(
     server: Server, clips: list[JpegClip], sessions: int, spec: StreamSpec
 ) -> Measurement:
     chosen = [clips[i % len(clips)] for i in range(sessions)]
-    ids = [await asyncio.to_thread(_new_session, server, clip) for clip in chosen]
-    sockets = [await _open(server, sid, spec.compression) for sid in ids]
     row = Measurement(spec.name, "frames", clients=sessions)
-    row.note = negotiated(sockets[0], spec.compression)
-    parts = [Measurement(spec.name, "frames") for _ in sockets]
-    try:
-        with metered(row, server.pid):
-            start = time.perf_counter()
-            await asyncio.gather(
-                *(
-                    _closed_loop(ws, clip, spec, part)
-                    for ws, clip, part in zip(sockets, chosen, parts, strict=True)
-                )
-            )
-            wall = time.perf_counter() - start
-    finally:
-        await asyncio.gather(*(ws.close() for ws in sockets), return_exceptions=True)
-    for part in parts:
-        row.add(part)
-    row.seconds = wall
+    client = _client(server, spec)
+    async with client:
+        ids = [(await client.create_session(clip.nodes)).id for clip in chosen]
+        plans = [Plan(client, sid, clip.frames) for sid, clip in zip(ids, chosen, strict=True)]
+        await closed_loops(plans, spec.seconds, row, lambda: metered(row, [server.pid]))
+        row.note = client.negotiated
     return row
 
 
@@ -158,17 +247,20 @@ async def _receive_open(
     accounted = 0  # frames tracked or dropped so far, in sending order
     last = time.perf_counter()
     while not (sender.done() and accounted >= len(sent_at)):
-        raw = await asyncio.wait_for(ws.recv(), RECV_TIMEOUT)
+        raw = await asyncio.wait_for(ws.recv(), TIMEOUT)
         last = time.perf_counter()
-        message = _frame_message(raw, row)
-        if message is None:
+        try:
+            result = parse_message(raw)
+        except ApiError:
+            result = None
+        if result is None:
+            row.errors += 1
             accounted += 1
             continue
-        dropped = int(message["dropped"])
-        accounted += dropped + 1
+        accounted += result.dropped + 1
         row.items += 1
-        row.dropped += dropped
-        row.server_ms.append(float(message["elapsed_ms"]))
+        row.dropped += result.dropped
+        row.server_ms.append(result.elapsed_ms)
         if 0 < accounted <= len(sent_at):
             row.latencies_ms.append((last - sent_at[accounted - 1]) * 1e3)
     return last
@@ -177,18 +269,21 @@ async def _receive_open(
 async def _stream_open(
     server: Server, clip: JpegClip, rate: float, spec: StreamSpec
 ) -> Measurement:
-    session_id = await asyncio.to_thread(_new_session, server, clip)
     row = Measurement(spec.name, "frames")
     sent_at: list[float] = []
-    async with await _open(server, session_id, spec.compression) as ws:
-        row.note = negotiated(ws, spec.compression)
-        with metered(row, server.pid):
-            start = time.perf_counter()
-            sender = asyncio.create_task(_send_on_clock(ws, clip, rate, sent_at, spec.deadline))
-            try:
-                last = await _receive_open(ws, row, sent_at, sender)
-            finally:
-                sender.cancel()
+    client = _client(server, spec)
+    async with client:
+        session = await client.create_session(clip.nodes)
+        deadline = time.monotonic() + spec.seconds
+        async with client.open_stream(session) as ws:
+            row.note = client.negotiated
+            with metered(row, [server.pid]):
+                start = time.perf_counter()
+                sender = asyncio.create_task(_send_on_clock(ws, clip, rate, sent_at, deadline))
+                try:
+                    last = await _receive_open(ws, row, sent_at, sender)
+                finally:
+                    sender.cancel()
     row.sent = len(sent_at)
     row.seconds = last - start
     return row

@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from bench.common.config import Config as BaseConfig
+
 A_MAIN = 10.0
 """Stiffness ``a = k/m`` of the timings, the goals and the main error panel."""
 
@@ -37,13 +39,11 @@ LITERAL_N_MAX = 5000
 
 
 @dataclass(frozen=True, slots=True)
-class Config:
-    """What to measure, and how hard.
+class Config(BaseConfig):
+    """What the solver benchmark measures, and how hard.
 
     Attributes
     ----------
-    name : str
-        ``"full"`` or ``"quick"``.
     error_sizes, error_stiffnesses : tuple
         The (N, a) grid of the error study (fig. 2).
     timing_sizes : tuple of int
@@ -60,7 +60,6 @@ class Config:
         Fresh interpreters started to time ``import engine``.
     """
 
-    name: str
     error_sizes: tuple[int, ...]
     error_stiffnesses: tuple[float, ...]
     timing_sizes: tuple[int, ...]

@@ -12,8 +12,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from _solvers_config import A_MAIN, ERROR_LABELS, PAPER_ERROR_PCT, TIMED_METHODS
-from _solvers_results import ErrorRecord, TimingRecord
+from bench.solvers.config import A_MAIN, ERROR_LABELS, PAPER_ERROR_PCT, TIMED_METHODS
+from bench.solvers.results import ErrorRecord, TimingRecord
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

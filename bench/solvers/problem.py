@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import engine
-from _timing import Call
+from bench.common.timing import Call
 
 Array = NDArray[np.float64]
 

@@ -7,7 +7,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from _solvers_config import (
+from bench.common.report import header, md_table, verdict
+from bench.common.timing import Timing
+from bench.solvers.config import (
     ERROR_LABELS,
     ERROR_METHODS,
     IMPORT_GOAL_SECONDS,
@@ -15,9 +17,8 @@ from _solvers_config import (
     PAPER_ERROR_PCT,
     TIMED_METHODS,
 )
-from _solvers_problem import NOISE
-from _solvers_results import ErrorRecord, Results, TimingRecord
-from _timing import Timing
+from bench.solvers.problem import NOISE
+from bench.solvers.results import ErrorRecord, Results, TimingRecord
 
 EFDMT_NOTE = (
     "Reading the table: EFDM, exact, FFT (and the literal formula while it is finite) differ "
@@ -45,13 +46,6 @@ def fmt_pct(value: float) -> str:
     if value == 0.0:
         return "0"
     return f"{value:.3g}" if value >= 1e-3 else f"{value:.2e}"
-
-
-def md_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    """A markdown table."""
-    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines)
 
 
 def mean_errors(records: Sequence[ErrorRecord], a: float) -> dict[str, float]:
@@ -185,7 +179,7 @@ def goal_rows(results: Results) -> list[list[str]]:
             fmt_seconds(g.slow.median),
             f"{g.speedup:.1f}x",
             f">= {g.goal.target:g}x",
-            "PASS" if g.passed else "FAIL",
+            verdict(g.passed),
         ]
         for g in results.goals
     ]
@@ -198,7 +192,7 @@ def goal_rows(results: Results) -> list[list[str]]:
             "-",
             "-",
             f"< {IMPORT_GOAL_SECONDS:g} s",
-            "PASS" if imports.median < IMPORT_GOAL_SECONDS else "FAIL",
+            verdict(imports.median < IMPORT_GOAL_SECONDS),
         ]
     )
     rows.append(
@@ -209,7 +203,7 @@ def goal_rows(results: Results) -> list[list[str]]:
             "-",
             "-",
             "not in sys.modules",
-            "PASS" if imports.server_free else "FAIL",
+            verdict(imports.server_free),
         ]
     )
     return rows
@@ -233,18 +227,18 @@ def goals_section(results: Results) -> str:
 
 def render(results: Results) -> str:
     """The whole markdown report."""
-    machine = results.machine
-    header = "\n".join(
-        [
-            "# Solver benchmark (Krinidis & Pitas, section IV)",
-            "",
-            f"- date: {machine['date']}",
-            f"- machine: {machine['platform']}; CPU {machine['cpu']}; "
-            f"{machine['cpu_count']} CPUs ({machine['usable_cpus']} usable)",
-            f"- python {machine['python']}, numpy {machine['numpy']}, scipy {machine['scipy']}, "
-            f"numba {machine['numba']}",
-            f"- run: `{results.config.name}`, {results.wall_seconds:.0f} s wall time",
-        ]
+    m = results.machine
+    top = header(
+        "Solver benchmark (Krinidis & Pitas, section IV)",
+        m,
+        f"{m['cpu_count']} CPUs ({m['usable_cpus']} usable)",
+        f"- python {m['python']}, numpy {m['numpy']}, scipy {m['scipy']}, numba {m['numba']}",
+        f"- run: `{results.config.name}`, {results.wall_seconds:.0f} s wall time",
     )
-    sections = [header, goals_section(results), error_section(results), timing_section(results)]
+    sections = [
+        "\n".join(top),
+        goals_section(results),
+        error_section(results),
+        timing_section(results),
+    ]
     return "\n\n".join(sections) + "\n"

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import math
 import statistics
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from _solvers_config import PAPER_ERROR_PCT, Config, Goal
-from _timing import Timing
+from bench.common.output import jsonable
+from bench.common.timing import Timing
+from bench.solvers.config import PAPER_ERROR_PCT, Config, Goal
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,17 +104,6 @@ class Results:
     goals: list[GoalResult]
     imports: ImportResult
     wall_seconds: float
-
-
-def jsonable(value: Any) -> Any:
-    """Replace non-finite floats by None and tuples by lists, recursively."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [jsonable(v) for v in value]
-    return value
 
 
 def to_json(results: Results) -> dict[str, Any]:

@@ -5,9 +5,10 @@ and ``skimage`` (``skimage.segmentation.active_contour`` frame by frame).
 Each starts from the first mask's largest outer contour (128 nodes) and then
 sees only frames; J = IoU of the filled contour with the ground-truth mask,
 mean over frames 1..T per clip, then over clips.  Only ``step`` calls are
-timed, on one thread.
+timed, on one thread (``python -m bench.tracking`` pins the thread counts
+before numpy loads).
 
-Run ``python bench/tracking.py`` (``make bench-tracking``); ``--quick`` runs a
+Run ``python -m bench.tracking`` (``make bench-tracking``); ``--quick`` runs a
 reduced set for smoke tests, ``--out DIR`` changes where the results go
 (default ``bench/results/``): ``tracking.md``, ``tracking.json`` (per-frame J
 and timings), ``tracking.png`` and ``tracking_sheet_<name>.jpg`` contact
@@ -17,33 +18,19 @@ sheets; ``--sequences a,b`` picks DAVIS sequences / synthetic conditions,
 
 from __future__ import annotations
 
-import os
+import argparse
+import math
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
-# One thread everywhere, for fair timings: set before numpy / OpenCV / numba load.
-for _variable in (
-    "OMP_NUM_THREADS",
-    "OPENBLAS_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "NUMBA_NUM_THREADS",
-):
-    os.environ[_variable] = "1"
+import cv2
+import numpy as np
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Sequence  # noqa: E402
-from dataclasses import asdict  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
-
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-
-import _machine  # noqa: E402
-from _machine import load_average  # noqa: E402
-from _tracking_data import (  # noqa: E402
+from bench.common import machine
+from bench.common.benchmark import Benchmark
+from bench.common.data import (
     DAVIS_ROOT,
     davis_names,
     load_davis,
@@ -51,13 +38,13 @@ from _tracking_data import (  # noqa: E402
     select,
     synthetic_conditions,
 )
-from _tracking_plots import contact_sheet, plot_scores, write_sheet  # noqa: E402
-from _tracking_report import REFERENCES, Results, goals, render  # noqa: E402
-from _tracking_run import FULL, QUICK, ClipResult, Config, log, run_clip  # noqa: E402
-from _tracking_trackers import SKIMAGE_PARAMS, TRACKERS, Factory, factory  # noqa: E402
-
-REPO = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = REPO / "bench" / "results"
+from bench.common.log import log
+from bench.common.machine import load_average
+from bench.tracking.config import FULL, QUICK, Config
+from bench.tracking.plots import contact_sheet, plot_scores, write_sheet
+from bench.tracking.report import Results, render, to_json
+from bench.tracking.run import ClipResult, run_clip
+from bench.tracking.trackers import TRACKERS, Factory, factory
 
 
 def load_factories(names: Sequence[str]) -> tuple[dict[str, Factory], dict[str, str]]:
@@ -104,7 +91,8 @@ def run_synthetic(
     try:
         available = synthetic_conditions()
     except (ImportError, AttributeError) as exc:
-        message = f"engine.synthetic unavailable ({type(exc).__name__}: {exc}): synthetic skipped"
+        why = f"{type(exc).__name__}: {exc}"
+        message = f"engine.testing.synthetic unavailable ({why}): synthetic skipped"
         log(message)
         return [], [], [message]
     limits = {} if config.skimage_synthetic is None else {"skimage": config.skimage_synthetic}
@@ -140,67 +128,7 @@ def save_sheet(image: np.ndarray[Any, Any], name: str, out: Path) -> str:
 
 def machine_info() -> dict[str, str]:
     """Platform, CPU, library versions and the date."""
-    return _machine.machine_info(opencv=cv2.__version__, skimage=_machine.version("scikit-image"))
-
-
-def finite(value: float) -> float | None:
-    """A float for JSON (non-finite: None)."""
-    return value if math.isfinite(value) else None
-
-
-def clip_json(clip: ClipResult) -> dict[str, Any]:
-    """Raw per-frame numbers of one clip (contours left out)."""
-    runs = {
-        name: {
-            "frames_tracked": run.frames,
-            "mean_j": finite(run.mean_j),
-            "j": run.scores,
-            "j_frame0": run.iou[0] if run.iou else None,
-            "median_ms": finite(run.median_ms),
-            "ms": run.ms,
-            "extras": run.extras,
-            "error": run.error,
-        }
-        for name, run in clip.runs.items()
-    }
-    return {"name": clip.name, "frames": clip.frames, "shape": list(clip.shape), "runs": runs}
-
-
-def to_json(results: Results) -> dict[str, Any]:
-    """Everything of the run as plain JSON data."""
-    return {
-        "config": asdict(results.config),
-        "machine": results.machine,
-        "trackers": list(results.trackers),
-        "unavailable": results.unavailable,
-        "skimage_params": SKIMAGE_PARAMS,
-        "wall_seconds": results.wall_seconds,
-        "goals": [
-            {
-                "goal": g.goal,
-                "measured": finite(g.measured),
-                "target": g.target,
-                "result": g.verdict,
-            }
-            for g in goals(results)
-        ],
-        "davis": [clip_json(c) for c in results.davis],
-        "synthetic": [clip_json(c) for c in results.synthetic],
-        "davis_references": {k: list(v) for k, v in REFERENCES.items()},
-        "notes": results.notes,
-        "units": {"j": "IoU of frames 1..T", "ms": "milliseconds per step call, frame 0 first"},
-    }
-
-
-def write_outputs(results: Results, out: Path) -> str:
-    """Write the report, the JSON and the bar chart into ``out``; return the report."""
-    out.mkdir(parents=True, exist_ok=True)
-    report = render(results)
-    (out / "tracking.md").write_text(report, encoding="utf-8")
-    text = json.dumps(to_json(results), indent=1, allow_nan=False)
-    (out / "tracking.json").write_text(text + "\n", encoding="utf-8")
-    plot_scores(results.davis, results.synthetic, results.trackers, out / "tracking.png")
-    return report
+    return machine.machine_info(opencv=cv2.__version__, skimage=machine.version("scikit-image"))
 
 
 def run(config: Config, args: argparse.Namespace) -> Results:
@@ -247,29 +175,22 @@ def tracker_names(text: str) -> list[str]:
     return chosen
 
 
-def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """Command line: ``--quick``, ``--out DIR``, ``--sequences a,b``, ``--trackers x,y``."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
-    parser.add_argument("--quick", action="store_true", help="reduced set for smoke tests")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output directory")
+def arguments(parser: argparse.ArgumentParser) -> None:
+    """``--sequences a,b`` and ``--trackers x,y``."""
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
     )
     parser.add_argument(
         "--trackers", type=tracker_names, default=list(TRACKERS), help="efdm,static,skimage"
     )
-    return parser.parse_args(argv)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the benchmark, print the report, write the result files."""
-    args = parse_args(argv)
-    results = run(QUICK if args.quick else FULL, args)
-    print(write_outputs(results, args.out), end="")
-    sheets = len(results.sheets)
-    log(f"wrote {args.out / 'tracking.md'}, tracking.json, tracking.png and {sheets} sheets")
-    return 0
+def figures(results: Results, out: Path) -> list[str]:
+    """The bar chart ``tracking.png`` (the contact sheets were written while running)."""
+    plot_scores(results.davis, results.synthetic, results.trackers, out / "tracking.png")
+    return ["tracking.png", *results.sheets]
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+BENCHMARK = Benchmark(
+    "tracking", __doc__, FULL, QUICK, run, render, to_json, figures=figures, arguments=arguments
+)

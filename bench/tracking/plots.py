@@ -11,9 +11,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from _tracking_data import Clip, Frame
-from _tracking_run import ClipResult, mean_j
-from _tracking_trackers import Nodes
+from bench.common.data import Clip, Frame
+from bench.tracking.run import ClipResult, mean_j
+from bench.tracking.trackers import Nodes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

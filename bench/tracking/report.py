@@ -9,9 +9,21 @@ from typing import Any
 
 import numpy as np
 
-from _tracking_plots import DAVIS_GOAL, SYNTHETIC_GOAL
-from _tracking_run import NODES, ClipResult, Config, mean_j, pooled_median_ms
-from _tracking_trackers import SKIMAGE_PARAMS, SKIMAGE_SIGMA
+from bench.common.output import finite, run_json
+from bench.common.report import (
+    GoalLine,
+    fmt,
+    goals_json,
+    goals_table,
+    header,
+    load_line,
+    md_table,
+    verdict,
+)
+from bench.tracking.config import NODES, Config
+from bench.tracking.plots import DAVIS_GOAL, SYNTHETIC_GOAL
+from bench.tracking.run import ClipResult, mean_j, pooled_median_ms
+from bench.tracking.trackers import SKIMAGE_PARAMS, SKIMAGE_SIGMA
 
 SPEEDUP_GOAL = 20.0
 FPS_GOAL = 100.0
@@ -41,33 +53,10 @@ class Results:
     sheets: list[str] = field(default_factory=list)
 
 
-@dataclass(frozen=True, slots=True)
-class GoalLine:
-    """One goal: what was measured against what was wanted."""
-
-    goal: str
-    measured: float
-    shown: str
-    target: str
-    passed: bool | None
-
-    @property
-    def verdict(self) -> str:
-        """``PASS``, ``FAIL`` or ``NOT RUN``."""
-        if self.passed is None:
-            return "NOT RUN"
-        return "PASS" if self.passed else "FAIL"
-
-
 def reference(tracker: str, sequence: str) -> float:
     """The README's J of a reference tracker on a sequence (``"mean"``: over the five)."""
     names = (*REFERENCE_SEQUENCES, "mean")
     return REFERENCES[tracker][names.index(sequence)] if sequence in names else math.nan
-
-
-def fmt(value: float, spec: str = ".3f") -> str:
-    """A number for the tables (``-`` when not measured)."""
-    return format(value, spec) if math.isfinite(value) else "-"
 
 
 def speed_clips(results: Results) -> tuple[list[ClipResult], str]:
@@ -85,8 +74,7 @@ def partial_davis(results: Results) -> bool:
 
 def score_goal(label: str, value: float, target: float) -> GoalLine:
     """A ``mean J >= target`` goal."""
-    ok = None if math.isnan(value) else value >= target
-    return GoalLine(label, value, fmt(value), f">= {target:g}", ok)
+    return GoalLine.at_least(label, value, fmt(value, ".3f"), target, f">= {target:g}")
 
 
 def goals(results: Results) -> list[GoalLine]:
@@ -102,37 +90,28 @@ def goals(results: Results) -> list[GoalLine]:
     clips, where = speed_clips(results)
     efdm_ms, skimage_ms = pooled_median_ms(clips, "efdm"), pooled_median_ms(clips, "skimage")
     speedup = skimage_ms / efdm_ms
-    ok = None if math.isnan(speedup) else bool(speedup >= SPEEDUP_GOAL)
     lines.append(
-        GoalLine(
+        GoalLine.at_least(
             f"speed-up efdm vs skimage ({where}, median ms/frame)",
             speedup,
             f"{speedup:.1f}x (efdm {efdm_ms:.2f} ms, skimage {skimage_ms:.1f} ms)"
             if math.isfinite(speedup)
             else "-",
+            SPEEDUP_GOAL,
             f">= {SPEEDUP_GOAL:g}x",
-            ok,
         )
     )
     fps = 1e3 / efdm_ms
-    ok = None if math.isnan(fps) else bool(fps >= FPS_GOAL)
     lines.append(
-        GoalLine(
+        GoalLine.at_least(
             f"efdm frames/s ({where}, {NODES} nodes, single thread)",
             fps,
             f"{fps:.0f} fps (median {efdm_ms:.2f} ms)" if math.isfinite(fps) else "-",
+            FPS_GOAL,
             f">= {FPS_GOAL:g} fps",
-            ok,
         )
     )
     return lines
-
-
-def md_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    """A markdown table."""
-    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines)
 
 
 def j_cell(clip: ClipResult, tracker: str) -> str:
@@ -142,7 +121,7 @@ def j_cell(clip: ClipResult, tracker: str) -> str:
         return "-"
     mark = " (failed)" if run.error else ""
     limited = f" ({run.frames} fr.)" if run.frames < clip.frames else ""
-    return f"{fmt(run.mean_j)}{limited}{mark}"
+    return f"{fmt(run.mean_j, '.3f')}{limited}{mark}"
 
 
 def davis_section(results: Results) -> str:
@@ -154,7 +133,7 @@ def davis_section(results: Results) -> str:
             c.name,
             str(c.frames),
             *(j_cell(c, t) for t in trackers),
-            *(fmt(reference(r, c.name)) for r in refs),
+            *(fmt(reference(r, c.name), ".3f") for r in refs),
         ]
         for c in results.davis
     ]
@@ -162,8 +141,8 @@ def davis_section(results: Results) -> str:
         [
             "**mean**",
             str(sum(c.frames for c in results.davis)),
-            *(f"**{fmt(mean_j(results.davis, t))}**" for t in trackers),
-            *(fmt(reference(r, "mean")) for r in refs),
+            *(f"**{fmt(mean_j(results.davis, t), '.3f')}**" for t in trackers),
+            *(fmt(reference(r, "mean"), ".3f") for r in refs),
         ]
     )
     headers = ["sequence", "frames", *trackers, *(f"ref. {r}" for r in refs)]
@@ -215,7 +194,7 @@ def synthetic_section(results: Results) -> str:
     )
     return "\n\n".join(
         [
-            "## Synthetic sequences (`engine.synthetic`): mean IoU over frames 1..T",
+            "## Synthetic sequences (`engine.testing.synthetic`): mean IoU over frames 1..T",
             f"Seed 0, 480 x 640, {results.config.synthetic_length} frames per condition. Goal: "
             f"efdm >= {SYNTHETIC_GOAL:g} on every condition.{skimage_note}",
             md_table(["condition", "frames", *trackers, "efdm goal"], rows),
@@ -229,8 +208,8 @@ def goal_verdict(clip: ClipResult) -> str:
     """PASS / FAIL of the synthetic goal for one condition."""
     run = clip.runs.get("efdm")
     if run is None or math.isnan(run.mean_j):
-        return "NOT RUN"
-    return "PASS" if run.mean_j >= SYNTHETIC_GOAL else "FAIL"
+        return verdict(None)
+    return verdict(run.mean_j >= SYNTHETIC_GOAL)
 
 
 def summary(values: Sequence[float] | None, how: Callable[[Any], Any], spec: str) -> str:
@@ -321,25 +300,17 @@ def notes_section(results: Results) -> str:
 def render(results: Results) -> str:
     """The whole markdown report."""
     m = results.machine
-    header = "\n".join(
-        [
-            "# Contour tracking benchmark",
-            "",
-            f"- date: {m['date']}",
-            f"- machine: {m['platform']}; CPU {m['cpu']}; {m['cpu_count']} CPUs",
-            f"- load average (1, 5, 15 min) before: {m.get('load_before', '?')}; after: "
-            f"{m.get('load_after', '?')} (timings are only as quiet as the machine)",
-            f"- python {m['python']}, numpy {m['numpy']}, opencv {m['opencv']}, "
-            f"scikit-image {m['skimage']}",
-            f"- run: `{results.config.name}`, trackers {', '.join(results.trackers) or 'none'}, "
-            f"{results.wall_seconds:.0f} s wall time",
-        ]
+    top = header(
+        "Contour tracking benchmark",
+        m,
+        f"{m['cpu_count']} CPUs",
+        load_line(m, " (timings are only as quiet as the machine)"),
+        f"- python {m['python']}, numpy {m['numpy']}, opencv {m['opencv']}, "
+        f"scikit-image {m['skimage']}",
+        f"- run: `{results.config.name}`, trackers {', '.join(results.trackers) or 'none'}, "
+        f"{results.wall_seconds:.0f} s wall time",
     )
-    goal_rows = [[g.goal, g.shown, g.target, g.verdict] for g in goals(results)]
-    sections = [
-        header,
-        "## Goals\n\n" + md_table(["goal", "measured", "target", "result"], goal_rows),
-    ]
+    sections = ["\n".join(top), "## Goals\n\n" + goals_table(goals(results))]
     if results.davis:
         sections.append(davis_section(results))
     if results.synthetic:
@@ -351,3 +322,37 @@ def render(results: Results) -> str:
             "lowest): " + ", ".join(f"`{s}`" for s in results.sheets) + "."
         )
     return "\n\n".join(sections) + "\n"
+
+
+def clip_json(clip: ClipResult) -> dict[str, Any]:
+    """Raw per-frame numbers of one clip (contours left out)."""
+    runs = {
+        name: {
+            "frames_tracked": run.frames,
+            "mean_j": finite(run.mean_j),
+            "j": run.scores,
+            "j_frame0": run.iou[0] if run.iou else None,
+            "median_ms": finite(run.median_ms),
+            "ms": run.ms,
+            "extras": run.extras,
+            "error": run.error,
+        }
+        for name, run in clip.runs.items()
+    }
+    return {"name": clip.name, "frames": clip.frames, "shape": list(clip.shape), "runs": runs}
+
+
+def to_json(results: Results) -> dict[str, Any]:
+    """Everything of the run as plain JSON data."""
+    return {
+        **run_json(results),
+        "trackers": list(results.trackers),
+        "unavailable": results.unavailable,
+        "skimage_params": SKIMAGE_PARAMS,
+        "goals": goals_json(goals(results)),
+        "davis": [clip_json(c) for c in results.davis],
+        "synthetic": [clip_json(c) for c in results.synthetic],
+        "davis_references": {k: list(v) for k, v in REFERENCES.items()},
+        "notes": results.notes,
+        "units": {"j": "IoU of frames 1..T", "ms": "milliseconds per step call, frame 0 first"},
+    }

@@ -13,57 +13,17 @@ from __future__ import annotations
 
 import math
 import statistics
-import sys
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from _tracking_data import Clip
-from _tracking_trackers import ContourTracker, Factory, Nodes
+from bench.common.data import Clip
+from bench.common.log import log
+from bench.tracking.config import NODES
+from bench.tracking.trackers import ContourTracker, Factory, Nodes
 from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
-
-NODES = 128
-
-
-@dataclass(frozen=True, slots=True)
-class Config:
-    """What to run.
-
-    Attributes
-    ----------
-    name : str
-        ``"full"`` or ``"quick"``.
-    davis_count, synthetic_count : int or None
-        How many DAVIS sequences / synthetic conditions (None: all).
-    davis_frames : int or None
-        Frames per DAVIS sequence (None: all).
-    synthetic_length : int
-        Frames per synthetic sequence.
-    skimage_davis, skimage_synthetic : int or None
-        Frames the slow skimage baseline tracks per clip (None: all).
-    synthetic_sheets : int
-        Synthetic conditions that get a contact sheet (those where efdm scores lowest).
-    """
-
-    name: str
-    davis_count: int | None
-    davis_frames: int | None
-    synthetic_count: int | None
-    synthetic_length: int
-    skimage_davis: int | None
-    skimage_synthetic: int | None
-    synthetic_sheets: int = 3
-
-
-FULL = Config("full", None, None, None, 40, None, 15)
-QUICK = Config("quick", 2, 15, 3, 12, 5, 5)
-
-
-def log(message: str) -> None:
-    """Progress line on stderr."""
-    print(f"[bench/tracking] {message}", file=sys.stderr, flush=True)
 
 
 @dataclass(slots=True)

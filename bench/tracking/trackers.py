@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from _tracking_data import Frame
+from bench.common.data import Frame
 
 Nodes = NDArray[np.float64]
 

@@ -1,0 +1,7 @@
+"""``python -m bench.solvers [--quick] [--out DIR]``."""
+
+import sys
+
+from bench.solvers.main import BENCHMARK
+
+sys.exit(BENCHMARK.main())
