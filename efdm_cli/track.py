@@ -3,7 +3,7 @@
 Writes one JSON record per frame (JSON Lines)::
 
     {"frame": 0, "nodes": [[x, y], ...], "iterations": 3, "converged": true,
-     "confidence": 0.9731, "elapsed_ms": 1.204}
+     "confidence": 0.9731, "status": "tracking", "elapsed_ms": 1.204}
 
 Exit codes: 0 success; 1 an input or output could not be read or written
 (missing file, unreadable video, empty folder, undecodable image, overlay
@@ -46,6 +46,8 @@ class StepResult(Protocol):
     def converged(self) -> bool: ...
     @property
     def confidence(self) -> float: ...
+    @property
+    def status(self) -> str: ...
 
 
 def _numbers(text: str, what: str) -> list[float]:
@@ -171,6 +173,7 @@ def _record(index: int, result: StepResult, elapsed_ms: float) -> str:
             "iterations": int(result.iterations),
             "converged": bool(result.converged),
             "confidence": round(float(result.confidence), 4),
+            "status": str(result.status),
             "elapsed_ms": round(elapsed_ms, 3),
         }
     )

@@ -91,7 +91,12 @@ class FrameOut(BaseModel):
     nodes: list[Point]
     iterations: int
     converged: bool
-    confidence: float = Field(ge=0, le=1)
+    confidence: float = Field(
+        ge=0, le=1, description="the predicted overlap (IoU) of the contour with the object"
+    )
+    status: Literal["tracking", "uncertain", "lost"] = Field(
+        description="tracking: on the object; uncertain: may be off; lost: most likely not on it"
+    )
     version: int
     elapsed_ms: float
 

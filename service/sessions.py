@@ -159,6 +159,7 @@ class Session:
             "iterations": result.iterations,
             "converged": result.converged,
             "confidence": result.confidence,
+            "status": result.status,
             "version": self.version,
             "elapsed_ms": (time.perf_counter() - start) * 1e3,
         }

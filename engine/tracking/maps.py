@@ -60,12 +60,22 @@ class Maps:
         1: ``edges`` is on the grid of ``probability``; 2: at half its
         resolution, edge pixel ``u`` covering pixels ``2u`` and ``2u + 1``
         (a ``cv2.INTER_AREA`` halving).
+    observed : numpy.ndarray or None
+        p(object) as the appearance model sees the pixels, where
+        ``probability`` was changed to guide the refinement (occluders made
+        neutral); None when it was not.  What the confidence is read from.
     """
 
     origin: tuple[int, int]
     probability: NDArray[np.float32]
     edges: NDArray[np.float32]
     edge_step: int = 1
+    observed: NDArray[np.float32] | None = None
+
+    @property
+    def seen(self) -> NDArray[np.float32]:
+        """:attr:`observed` if set, else :attr:`probability`."""
+        return self.probability if self.observed is None else self.observed
 
     def __post_init__(self) -> None:
         if self.edge_step not in (1, 2):

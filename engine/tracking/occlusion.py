@@ -59,7 +59,8 @@ def unoccluded(
     Returns
     -------
     refine : Maps
-        ``maps`` with the covered pixels at p = 0.5, for the refinement.
+        ``maps`` with the covered pixels at p = 0.5, for the refinement
+        (``observed`` keeps what the pixels look like).
     remember : Maps
         ``maps`` with the covered pixels at their previous p(object) (the
         object goes on under the occluder), for the next frame.
@@ -97,6 +98,6 @@ def unoccluded(
     memory = maps.probability.copy()
     memory.flat[where] = was
     return (
-        Maps(maps.origin, prob, maps.edges, maps.edge_step),
+        Maps(maps.origin, prob, maps.edges, maps.edge_step, observed=maps.probability),
         Maps(maps.origin, memory, maps.edges, maps.edge_step),
     )

@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from engine.geometry import as_nodes, resample
 from engine.tracking._state_codec import pack_image, unpack_image
 from engine.tracking.appearance import ColourHistogram
+from engine.tracking.confidence import Status, calibrated, evidence, status_of
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
@@ -51,12 +52,12 @@ colour model, probability and corners at the top level) is still read."""
 MIN_SIDE = 16
 """Frames smaller than this (pixels) carry no trackable information."""
 MOTION_SHARE = 0.4
-"""Share of the motion's support in the confidence; the rest is the boundary
-evidence, which says more: a contour on the object's edges is right even when
-the object's texture gives the motion little support."""
+"""Share of the motion's support in the learning signal; the rest is the
+boundary evidence, which says more: a contour on the object's edges is right
+even when the object's texture gives the motion little support."""
 LEARN_ABOVE = 0.5
-"""Only frames with confidence at least this teach the appearance model, so
-that a lost or occluded object does not teach it the background."""
+"""Only frames whose learning signal is at least this teach the appearance
+model, so that a lost or occluded object does not teach it the background."""
 STAGES = ("motion", "appearance", "cues")
 
 
@@ -73,14 +74,19 @@ class TrackResult:
     converged : bool
         Whether the refinement settled before the iteration limit.
     confidence : float
-        In [0, 1]; drops when the object is lost (little motion support and
-        no boundary evidence).
+        In [0, 1]: the predicted overlap (IoU) of the contour with the object
+        (:mod:`engine.tracking.confidence`); 0 for a contour outside the frame.
+    status : {"tracking", "uncertain", "lost"}
+        ``tracking``: the contour is on the object; ``uncertain``: it may be
+        off; ``lost``: it most likely does not cover the object (from the
+        confidence, :func:`engine.tracking.confidence.status_of`).
     """
 
     nodes: NDArray[np.float64]
     iterations: int
     converged: bool
     confidence: float
+    status: Status = "tracking"
 
 
 @contextlib.contextmanager
@@ -246,12 +252,13 @@ class Tracker:
             maps, grey.shape, prediction.nodes, options=self.options, previous_nodes=self._nodes
         )
         support = MOTION_SHARE * prediction.support
-        confidence = float(np.clip(support + (1 - MOTION_SHARE) * refinement.contrast, 0.0, 1.0))
+        signal = support + (1 - MOTION_SHARE) * refinement.contrast
+        confidence = calibrated(evidence(maps, refinement.nodes, refinement.converged))
         if not self._visible(grey):
-            confidence = 0.0
+            signal = confidence = 0.0
         self._nodes = refinement.nodes
         self._previous = grey
-        if confidence >= LEARN_ABOVE:
+        if signal >= LEARN_ABOVE:
             self.appearance.update(image, self._nodes)
         return self._result(refinement.iterations, refinement.converged, confidence)
 
@@ -264,7 +271,8 @@ class Tracker:
         return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
-        return TrackResult(self._nodes.copy(), iterations, converged, confidence)
+        status = status_of(confidence)
+        return TrackResult(self._nodes.copy(), iterations, converged, confidence, status)
 
     def _visible(self, grey: NDArray[np.uint8]) -> bool:
         h, w = grey.shape

@@ -133,7 +133,9 @@ class FrameResult:
     converged : bool
         Whether the tracker converged.
     confidence : float
-        In [0, 1].
+        In [0, 1]: the predicted overlap (IoU) of the contour with the object.
+    status : str
+        ``"tracking"``, ``"uncertain"`` or ``"lost"``.
     version : int
         Session version after this frame.
     elapsed_ms : float
@@ -151,6 +153,7 @@ class FrameResult:
     version: int
     elapsed_ms: float
     dropped: int = 0
+    status: str = "tracking"
 
 
 @dataclass(frozen=True, eq=False)
@@ -339,6 +342,7 @@ def parse_frame(data: Mapping[str, Any]) -> FrameResult:
         version=int(data["version"]),
         elapsed_ms=float(data["elapsed_ms"]),
         dropped=int(data.get("dropped", 0)),
+        status=str(data.get("status", "tracking")),
     )
 
 

@@ -492,7 +492,7 @@
     ui.latency.textContent = latencyAvg === null ? "–" : `${Math.round(latencyAvg)} ms`;
     ui.dropped.textContent = String(demo.dropped);
     const r = demo.lastResult;
-    ui.confidence.textContent = r ? r.confidence.toFixed(2) : "–";
+    ui.confidence.textContent = r ? `${r.confidence.toFixed(2)} ${r.status ?? ""}`.trim() : "–";
     ui.frame.textContent = r ? String(r.frame_index) : "–";
   }
 

@@ -76,13 +76,22 @@ def read_records(text: str, nodes: int = 128) -> list[dict[str, Any]]:
     records = [json.loads(line) for line in text.splitlines()]
     assert [r["frame"] for r in records] == list(range(len(records)))
     for r in records:
-        assert set(r) == {"frame", "nodes", "iterations", "converged", "confidence", "elapsed_ms"}
+        assert set(r) == {
+            "frame",
+            "nodes",
+            "iterations",
+            "converged",
+            "confidence",
+            "status",
+            "elapsed_ms",
+        }
         arr = np.array(r["nodes"], dtype=np.float64)
         assert arr.shape == (nodes, 2)
         assert np.isfinite(arr).all()
         assert isinstance(r["iterations"], int)
         assert isinstance(r["converged"], bool)
         assert 0.0 <= r["confidence"] <= 1.0
+        assert r["status"] in {"tracking", "uncertain", "lost"}
         assert r["elapsed_ms"] >= 0
     return records
 

@@ -22,7 +22,7 @@ from efdm_cli.track import parse_circle, parse_options, parse_polygon
 class FakeResult:
     def __init__(self, nodes: NDArray[np.float64], index: int) -> None:
         self.nodes, self.iterations = nodes, index
-        self.converged, self.confidence = True, 0.123456
+        self.converged, self.confidence, self.status = True, 0.123456, "uncertain"
 
 
 class FakeTracker:

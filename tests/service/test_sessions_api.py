@@ -248,9 +248,11 @@ def test_frames_raw(client: TestClient, kind: str, media_type: str) -> None:
         "iterations",
         "converged",
         "confidence",
+        "status",
         "version",
         "elapsed_ms",
     }
+    assert out["status"] == "tracking"  # the first frame returns the contour as given
     assert (out["frame_index"], out["version"]) == (0, 2)
     assert len(out["nodes"]) == 64
     assert isinstance(out["iterations"], int)

@@ -1,0 +1,85 @@
+"""engine.tracking.confidence: the calibrated confidence and the status it gives."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from engine.geometry import circle_nodes, contour_to_mask
+from engine.tracking.confidence import (
+    LOST_BELOW,
+    TRACKING_FROM,
+    Evidence,
+    calibrated,
+    evidence,
+    status_of,
+)
+from engine.tracking.maps import Maps
+from engine.tracking.tracker import Tracker
+from tests.engine.scenes import DiscScene
+from tests.engine.tracking.moving_disc import H, R, W, centre, initial, run
+
+U8 = NDArray[np.uint8]
+
+
+def disc_maps(origin: tuple[int, int] = (0, 0)) -> Maps:
+    """p(object) 1 on a disc of radius 20 at (60, 50) of the frame, 0 elsewhere."""
+    mask = contour_to_mask(circle_nodes((60.0, 50.0), 20.0, 720), (100, 120))
+    ox, oy = origin
+    prob = (mask[oy:, ox:] > 0).astype(np.float32)
+    return Maps(origin, prob, np.zeros_like(prob))
+
+
+def test_evidence_reads_inside_and_around_the_contour() -> None:
+    on = evidence(disc_maps(), circle_nodes((60.0, 50.0), 20.0, 64), settled=True)
+    assert on.inside == pytest.approx(1.0)
+    assert on.outside < 0.05
+    off = evidence(disc_maps(), circle_nodes((60.0, 50.0), 35.0, 64), settled=True)
+    assert off.inside < 0.5  # the contour holds as much background as object
+    assert evidence(disc_maps((7, 4)), circle_nodes((60.0, 50.0), 20.0, 64), True) == on
+
+
+def test_evidence_outside_the_maps_is_unknown() -> None:
+    far = evidence(disc_maps(), circle_nodes((900.0, 900.0), 10.0, 32), settled=False)
+    assert (far.inside, far.outside) == (0.5, 0.5)
+
+
+def test_confidence_rises_with_the_evidence() -> None:
+    grid = np.linspace(0.0, 1.0, 11)
+    for settled in (False, True):
+        inside = [calibrated(Evidence(p, 0.2, settled)) for p in grid]
+        outside = [calibrated(Evidence(0.8, p, settled)) for p in grid]
+        assert np.all(np.diff(inside) > 0)
+        assert np.all(np.diff(outside) < 0)
+        assert all(0.0 < c < 1.0 for c in inside + outside)
+    assert calibrated(Evidence(0.8, 0.2, True)) > calibrated(Evidence(0.8, 0.2, False))
+    assert calibrated(Evidence(1.0, 0.0, True)) >= TRACKING_FROM
+    assert calibrated(Evidence(0.5, 0.5, False)) < LOST_BELOW  # nothing tells object from not
+
+
+@pytest.mark.parametrize(
+    ("confidence", "status"),
+    [
+        (1.0, "tracking"),
+        (TRACKING_FROM, "tracking"),
+        (np.nextafter(TRACKING_FROM, 0.0), "uncertain"),
+        (LOST_BELOW, "uncertain"),
+        (np.nextafter(LOST_BELOW, 0.0), "lost"),
+        (0.0, "lost"),
+    ],
+)
+def test_status_thresholds(confidence: float, status: str) -> None:
+    assert status_of(float(confidence)) == status
+
+
+def test_a_followed_object_is_tracking_and_a_vanished_one_is_not(frames: list[U8]) -> None:
+    tracker = Tracker(initial())
+    results = run(tracker, frames[:8])
+    assert [r.status for r in results] == ["tracking"] * 8
+    assert min(r.confidence for r in results) >= 0.8
+    # the disc leaves: the same textured background without it
+    empty = DiscScene(W, H, R, seed=11).frame((-10 * R, -10 * R))
+    after = run(tracker, [empty] * 3)
+    assert all(r.status != "tracking" for r in after), [r.confidence for r in after]
+    assert centre(0) != centre(7)
