@@ -2,8 +2,10 @@
 
 - :mod:`bench.solvers`: the paper's section IV (errors against DMMA, time per
   deformation) and the solver speed goals (``make bench-solvers``);
-- :mod:`bench.tracking`: contour trackers on DAVIS-2016 and synthetic
-  sequences (``make bench-tracking``);
+- :mod:`bench.tracking`: contour trackers on DAVIS-2016 (the thirty training
+  sequences and the five validation ones) and synthetic sequences
+  (``make bench-tracking``), and the cross-validation of efdm's options on
+  folds of the training sequences (``--cv``);
 - :mod:`bench.serving`: a real ``efdm serve`` against ``engine.Tracker``
   in-process (``make bench-service``);
 - :mod:`bench.load`: many concurrent WebSocket sessions on 1 and 2 replicas

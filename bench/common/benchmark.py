@@ -46,6 +46,8 @@ class Benchmark(Generic[C, R]):
     stem : str
         Result files ``<stem>.md`` (the report, also printed) and ``<stem>.json``
         (default: ``name``).
+    stem_of : callable, optional
+        ``stem_of(results)``: the stem for results of another mode (instead of ``stem``).
     figures : callable
         ``figures(results, out)``: write the pictures into ``out``, return their file names.
     arguments : callable, optional
@@ -60,6 +62,7 @@ class Benchmark(Generic[C, R]):
     render: Callable[[R], str]
     to_json: Callable[[R], Any]
     stem: str = ""
+    stem_of: Callable[[R], str] | None = None
     figures: Callable[[R, Path], list[str]] = no_figures
     arguments: Callable[[argparse.ArgumentParser], None] | None = None
 
@@ -71,7 +74,7 @@ class Benchmark(Generic[C, R]):
         results = self.run(self.quick if args.quick else self.full, args)
         out: Path = args.out
         report = self.render(results)
-        stem = self.stem or self.name
+        stem = self.stem_of(results) if self.stem_of else self.stem or self.name
         write_results(out, stem, report, self.to_json(results))
         extra = self.figures(results, out)
         print(report, end="")

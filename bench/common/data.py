@@ -1,4 +1,4 @@
-"""The sequences the benchmarks run on: the DAVIS-2016 subset and the synthetic sequences.
+"""The sequences the benchmarks run on: DAVIS-2016 (training and validation) and synthetic ones.
 
 Both give :class:`Clip` objects: frames (H x W x 3 BGR uint8) with one
 ground-truth mask each (H x W uint8, 0 / 255); the tracking benchmark runs on
@@ -24,7 +24,11 @@ Frame = NDArray[np.uint8]
 Mask = NDArray[np.uint8]
 
 DAVIS_ROOT = REPO.parent / "shared" / "data" / "davis2016"
-"""The DAVIS-2016 subset beside the repository (``../shared/data/davis2016``)."""
+"""The five DAVIS-2016 validation sequences beside the repository (``../shared/data/davis2016``):
+a held-out check, reported and never tuned on."""
+DAVIS_TRAIN_ROOT = REPO.parent / "shared" / "data" / "davis2016-train"
+"""The thirty DAVIS-2016 training sequences (``../shared/data/davis2016-train``): the set to
+tune on, by cross-validation."""
 DAVIS_ORDER = ("blackswan", "car-shadow", "dog", "soapbox", "breakdance")
 """The order of the DAVIS README's tables; other sequences follow alphabetically."""
 
@@ -38,7 +42,7 @@ class Clip:
     name : str
         Sequence (DAVIS) or condition (synthetic) name.
     source : str
-        ``"davis"`` or ``"synthetic"``.
+        ``"davis"`` (or the DAVIS set it belongs to) or ``"synthetic"``.
     frames : tuple of numpy.ndarray
         H x W x 3 BGR uint8 frames.
     masks : tuple of numpy.ndarray
@@ -74,8 +78,12 @@ def read_image(path: Path, flags: int) -> NDArray[np.uint8]:
     return np.asarray(image, dtype=np.uint8)
 
 
-def load_davis(name: str, limit: int | None = None, root: Path = DAVIS_ROOT) -> Clip:
+def load_davis(
+    name: str, limit: int | None = None, root: Path = DAVIS_ROOT, source: str = "davis"
+) -> Clip:
     """Frames and masks of one DAVIS sequence, optionally only the first ``limit``.
+
+    ``source`` labels the clip (e.g. the set it belongs to).
 
     Raises
     ------
@@ -88,7 +96,7 @@ def load_davis(name: str, limit: int | None = None, root: Path = DAVIS_ROOT) -> 
         raise OSError(f"DAVIS sequence {name}: frames and masks do not pair up")
     frames = tuple(read_image(p, cv2.IMREAD_COLOR) for p in frame_paths)
     masks = tuple(read_image(p, cv2.IMREAD_GRAYSCALE) for p in mask_paths)
-    return Clip(name, "davis", frames, masks)
+    return Clip(name, source, frames, masks)
 
 
 def synthetic_module() -> Any:

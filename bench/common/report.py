@@ -85,6 +85,14 @@ class GoalLine:
         passed = None if not math.isfinite(measured) else bool(measured >= threshold)
         return cls(goal, measured, shown, target, passed)
 
+    @classmethod
+    def at_most(
+        cls, goal: str, measured: float, shown: str, threshold: float, target: str
+    ) -> GoalLine:
+        """A goal reached when ``measured <= threshold`` (not run: ``measured`` not finite)."""
+        passed = None if not math.isfinite(measured) else bool(measured <= threshold)
+        return cls(goal, measured, shown, target, passed)
+
     @property
     def verdict(self) -> str:
         """``PASS``, ``FAIL`` or ``NOT RUN``."""

@@ -1,9 +1,10 @@
-"""``python -m bench.tracking [--quick] [--out DIR] [--sequences a,b] [--trackers x,y]``."""
+"""``python -m bench.tracking [--quick] [--out DIR] [--sets ...] [--cv OPTION=V1,V2 ...]``."""
 
 import os
 import sys
 
-# One thread everywhere, for fair timings: set before numpy / OpenCV / numba load.
+# One thread everywhere, for fair timings: set before numpy / OpenCV / numba load.  The
+# worker processes (spawned: they import this module as ``__mp_main__``) inherit them.
 for _variable in (
     "OMP_NUM_THREADS",
     "OPENBLAS_NUM_THREADS",
@@ -12,6 +13,7 @@ for _variable in (
 ):
     os.environ[_variable] = "1"
 
-from bench.tracking.main import BENCHMARK  # noqa: E402
+if __name__ == "__main__":
+    from bench.tracking.main import BENCHMARK
 
-sys.exit(BENCHMARK.main())
+    sys.exit(BENCHMARK.main())

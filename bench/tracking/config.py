@@ -1,4 +1,4 @@
-"""What the tracking benchmark runs: the clips, their lengths, the slow baseline's limits."""
+"""What the tracking benchmark runs: the sets, their sizes, the slow baseline's limits."""
 
 from __future__ import annotations
 
@@ -7,7 +7,14 @@ from dataclasses import dataclass
 from bench.common.config import Config as BaseConfig
 
 NODES = 128
-"""Contour nodes of every tracker (the DAVIS README's protocol)."""
+"""Contour nodes of every tracker (the DAVIS READMEs' protocol)."""
+SETS = ("davis-train", "davis-val", "synthetic")
+"""The sets: the thirty DAVIS-2016 training sequences (tuned on, by cross-validation only),
+the five validation ones (reported, never tuned on) and the synthetic conditions."""
+WORKERS = 2
+"""Worker processes for the tracking runs whose timings are not reported (2 cores)."""
+FOLDS = 5
+"""Cross-validation folds of the training sequences."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -16,26 +23,31 @@ class Config(BaseConfig):
 
     Attributes
     ----------
-    davis_count, synthetic_count : int or None
-        How many DAVIS sequences / synthetic conditions (None: all).
+    train_count, val_count, synthetic_count : int or None
+        How many training / validation sequences and synthetic conditions (None: all).
     davis_frames : int or None
         Frames per DAVIS sequence (None: all).
     synthetic_length : int
         Frames per synthetic sequence.
     skimage_davis, skimage_synthetic : int or None
         Frames the slow skimage baseline tracks per clip (None: all).
+    davis_sheets : int
+        DAVIS sequences (training and validation together) that get a contact sheet:
+        those where efdm scores lowest.
     synthetic_sheets : int
         Synthetic conditions that get a contact sheet (those where efdm scores lowest).
     """
 
-    davis_count: int | None
+    train_count: int | None
+    val_count: int | None
     davis_frames: int | None
     synthetic_count: int | None
     synthetic_length: int
     skimage_davis: int | None
     skimage_synthetic: int | None
+    davis_sheets: int = 5
     synthetic_sheets: int = 3
 
 
-FULL = Config("full", None, None, None, 40, None, 15)
-QUICK = Config("quick", 2, 15, 3, 12, 5, 5)
+FULL = Config("full", None, None, None, None, 40, None, 15)
+QUICK = Config("quick", 3, 2, 15, 3, 12, 5, 5, davis_sheets=2, synthetic_sheets=1)

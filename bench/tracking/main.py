@@ -1,50 +1,62 @@
-"""Tracking benchmark: contour trackers on DAVIS-2016 and on synthetic sequences.
+"""Tracking benchmark: contour trackers on DAVIS-2016 (training and validation) and synthetic clips.
 
 Trackers: ``efdm`` (``engine.Tracker``), ``static`` (the contour never moves)
 and ``skimage`` (``skimage.segmentation.active_contour`` frame by frame).
 Each starts from the first mask's largest outer contour (128 nodes) and then
-sees only frames; J = IoU of the filled contour with the ground-truth mask,
-mean over frames 1..T per clip, then over clips.  Only ``step`` calls are
-timed, on one thread (``python -m bench.tracking`` pins the thread counts
-before numpy loads).
+sees only frames.  DAVIS protocol: J = IoU of the filled contour with the
+mask over frames 1..T-2 (first and last left out), mean of the per-sequence
+means; decay, and how well efdm's status tells lost frames
+(:mod:`bench.tracking.metrics`).  Sets (:mod:`bench.tracking.sets`):
+``davis-train`` (30, tuned on by cross-validation only), ``davis-val`` (5,
+never tuned on), ``synthetic``.
 
-Run ``python -m bench.tracking`` (``make bench-tracking``); ``--quick`` runs a
-reduced set for smoke tests, ``--out DIR`` changes where the results go
-(default ``bench/results/``): ``tracking.md``, ``tracking.json`` (per-frame J
-and timings), ``tracking.png`` and ``tracking_sheet_<name>.jpg`` contact
-sheets; ``--sequences a,b`` picks DAVIS sequences / synthetic conditions,
-``--trackers efdm,static,skimage`` picks trackers.
+Run ``python -m bench.tracking`` (``make bench-tracking``): every set, no
+tuning (the defaults are fixed); results ``tracking.md``, ``tracking.json``
+(per-frame J, status, timings), ``tracking.png`` and contact sheets
+``tracking_sheet_<davis|synthetic>_<name>.jpg`` of the clips where efdm
+scores lowest.  Speed: the validation set (else the first set run) is tracked
+first, in this process, one thread, nothing else running; the other sets on
+``--workers`` processes (default 2).
+
+Options: ``--quick`` (smoke test: a few short sequences), ``--out DIR``
+(default ``bench/results/``), ``--sets davis-train,davis-val,synthetic``,
+``--sequences a,b`` (DAVIS sequences / synthetic conditions),
+``--trackers efdm,static,skimage``, ``--workers N``.
+
+Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
+[--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
+grid on the training sequences, chooses on folds of them, reports the
+cross-validated figures, and tracks the other sets asked for with the point
+chosen on all the training sequences (not tuned on); results
+``tracking_cv.md`` and ``tracking_cv.json``.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 
 from bench.common import machine
 from bench.common.benchmark import Benchmark
-from bench.common.data import (
-    DAVIS_ROOT,
-    davis_names,
-    load_davis,
-    load_synthetic,
-    select,
-    synthetic_conditions,
-)
 from bench.common.log import log
 from bench.common.machine import load_average
-from bench.tracking.config import FULL, QUICK, Config
-from bench.tracking.plots import contact_sheet, plot_scores, write_sheet
-from bench.tracking.report import Results, render, to_json
-from bench.tracking.run import ClipResult, run_clip
+from bench.tracking import cv_report, report
+from bench.tracking.config import FOLDS, FULL, QUICK, SETS, WORKERS, Config
+from bench.tracking.cv import CvResults, parse_axis, run_cv
+from bench.tracking.plots import plot_scores, write_sheets
+from bench.tracking.pool import Job, track_all
+from bench.tracking.report import Results
+from bench.tracking.run import ClipResult
+from bench.tracking.sets import ClipSpec, choose, is_partial, limits
 from bench.tracking.trackers import TRACKERS, Factory, factory
+
+TIMED_ORDER = ("davis-val", "davis-train", "synthetic")
+"""The set whose timings are the speed figures: the first of these that runs."""
 
 
 def load_factories(names: Sequence[str]) -> tuple[dict[str, Factory], dict[str, str]]:
@@ -60,105 +72,105 @@ def load_factories(names: Sequence[str]) -> tuple[dict[str, Factory], dict[str, 
     return factories, unavailable
 
 
-def run_davis(
-    config: Config, wanted: Sequence[str] | None, factories: dict[str, Factory], out: Path
-) -> tuple[list[ClipResult], list[str], list[str]]:
-    """Every chosen DAVIS sequence: results, sheet file names and notes."""
-    available = davis_names()
-    if not available:
-        message = f"DAVIS-2016 subset not found at {DAVIS_ROOT}: DAVIS part skipped"
-        log(message)
-        return [], [], [message]
-    limits = {} if config.skimage_davis is None else {"skimage": config.skimage_davis}
-    results: list[ClipResult] = []
-    sheets: list[str] = []
-    for order, name in enumerate(select(available, wanted, config.davis_count)):
-        clip = load_davis(name, config.davis_frames)
-        result = run_clip(clip, factories, limits, reverse=order % 2 == 1)
-        results.append(result)
-        sheets.append(save_sheet(contact_sheet(clip, result), f"davis_{name}", out))
-    return results, sheets, []
+def set_jobs(
+    config: Config, set_name: str, specs: Sequence[ClipSpec], trackers: tuple[str, ...]
+) -> list[Job]:
+    """The jobs of one set: its clips, the trackers in an order alternating from clip to clip."""
+    capped = tuple(sorted(limits(config, set_name).items()))
+    return [Job(s, trackers, capped, reverse=k % 2 == 1) for k, s in enumerate(specs)]
 
 
-def run_synthetic(
-    config: Config, wanted: Sequence[str] | None, factories: dict[str, Factory], out: Path
-) -> tuple[list[ClipResult], list[str], list[str]]:
-    """Every chosen synthetic condition: results, sheet file names and notes.
-
-    Contact sheets are written for the ``config.synthetic_sheets`` conditions
-    where efdm scores lowest (the first ones when efdm did not run).
-    """
-    try:
-        available = synthetic_conditions()
-    except (ImportError, AttributeError) as exc:
-        why = f"{type(exc).__name__}: {exc}"
-        message = f"engine.testing.synthetic unavailable ({why}): synthetic skipped"
-        log(message)
-        return [], [], [message]
-    limits = {} if config.skimage_synthetic is None else {"skimage": config.skimage_synthetic}
-    results: list[ClipResult] = []
-    candidates: list[tuple[float, int, np.ndarray[Any, Any], str]] = []
-    for order, name in enumerate(select(available, wanted, config.synthetic_count)):
-        clip = load_synthetic(name, config.synthetic_length)
-        result = run_clip(clip, factories, limits, reverse=order % 2 == 1)
-        results.append(result)
-        score = result.runs["efdm"].mean_j if "efdm" in result.runs else float(order)
-        candidates.append(
-            (score if math.isfinite(score) else -1.0, order, contact_sheet(clip, result), name)
-        )
-    chosen = sorted(candidates, key=lambda c: (c[0], c[1]))[: config.synthetic_sheets]
-    sheets = [
-        save_sheet(image, f"synthetic_{name}", out)
-        for _, _, image, name in sorted(chosen, key=lambda c: c[1])
-    ]
-    return results, sheets, []
+def machine_info(load_before: str) -> dict[str, str]:
+    """Platform, CPU, library versions, the date and the load before and after."""
+    info = machine.machine_info(opencv=cv2.__version__, skimage=machine.version("scikit-image"))
+    return {**info, "load_before": load_before, "load_after": load_average()}
 
 
-def save_sheet(image: np.ndarray[Any, Any], name: str, out: Path) -> str:
-    """Write ``tracking_sheet_<name>.jpg`` into ``out``; return the file name.
-
-    Sheets of DAVIS frames are named ``tracking_sheet_davis_*`` and kept out of
-    git: the data set's terms allow evaluation, not copies in this repository.
-    """
-    file_name = f"tracking_sheet_{name}.jpg"
-    out.mkdir(parents=True, exist_ok=True)
-    write_sheet(image, out / file_name)
-    return file_name
-
-
-def machine_info() -> dict[str, str]:
-    """Platform, CPU, library versions and the date."""
-    return machine.machine_info(opencv=cv2.__version__, skimage=machine.version("scikit-image"))
-
-
-def run(config: Config, args: argparse.Namespace) -> Results:
-    """Run every chosen tracker on every chosen clip."""
-    start = time.perf_counter()
-    load_before = load_average()
-    cv2.setNumThreads(1)
+def run_plain(config: Config, args: argparse.Namespace) -> Results:
+    """Every chosen tracker on every chosen clip of every chosen set, with the default options."""
+    start, load_before = time.perf_counter(), load_average()
     factories, unavailable = load_factories(args.trackers)
-    out: Path = args.out
-    davis, davis_sheets, davis_notes = run_davis(config, args.sequences, factories, out)
-    synthetic, synthetic_sheets, synthetic_notes = run_synthetic(
-        config, args.sequences, factories, out
-    )
-    notes = davis_notes + synthetic_notes
-    ran = {c.name for c in [*davis, *synthetic]}
+    trackers = tuple(factories)
+    chosen = {name: choose(config, name, args.sequences) for name in args.sets}
+    notes = [why for _, why in chosen.values() if why]
+    timed = next((name for name in TIMED_ORDER if chosen.get(name, ([], None))[0]), None)
+    jobs = {name: set_jobs(config, name, specs, trackers) for name, (specs, _) in chosen.items()}
+    sets: dict[str, list[ClipResult]] = {}
+    if timed is not None:
+        log(f"{timed}: tracked here, alone (its timings are the speed figures)")
+        sets[timed] = track_all(jobs[timed], workers=1)
+    rest = [job for name in args.sets if name != timed for job in jobs[name]]
+    log(f"{len(rest)} more clips on {args.workers} worker process(es)")
+    for job, result in zip(rest, track_all(rest, args.workers), strict=True):
+        sets.setdefault(job.clip.set, []).append(result)
+    ran = {c.name for clips in sets.values() for c in clips}
     unknown = [name for name in args.sequences or () if name not in ran]
     if unknown:
-        notes.append(f"requested but not found (or their part skipped): {', '.join(unknown)}")
+        notes.append(f"requested but not found (or their set skipped): {', '.join(unknown)}")
         log(notes[-1])
+    ordered = {name: sets.get(name, []) for name in SETS if name in args.sets}
+    sheets = write_sheets(ordered, config.davis_sheets, config.synthetic_sheets, args.out)
+    partial = tuple(n for n, (specs, _) in chosen.items() if is_partial(config, n, specs))
     return Results(
         config=config,
-        trackers=tuple(factories),
-        davis=davis,
-        synthetic=synthetic,
-        machine={**machine_info(), "load_before": load_before, "load_after": load_average()},
+        trackers=trackers,
+        sets=ordered,
+        timed=timed,
+        workers=args.workers,
+        machine=machine_info(load_before),
         wall_seconds=time.perf_counter() - start,
+        partial=partial,
         notes=notes,
         unavailable=unavailable,
-        sheets=davis_sheets + synthetic_sheets,
+        sheets=sheets,
     )
+
+
+def run_tuning(config: Config, args: argparse.Namespace) -> CvResults:
+    """The cross-validation mode (``--cv``): efdm only."""
+    start, load_before = time.perf_counter(), load_average()
+    if "efdm" not in args.trackers:
+        raise SystemExit("--cv tunes efdm: --trackers must include efdm")
+    results = run_cv(config, args)
+    ignored = [t for t in args.trackers if t != "efdm"]
+    if ignored:
+        results.notes.append(f"--cv runs efdm only: {', '.join(ignored)} not run")
+    results.machine = machine_info(load_before)
+    results.wall_seconds = time.perf_counter() - start
+    return results
+
+
+def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
+    """The plain run, or the cross-validation with ``--cv``."""
+    cv2.setNumThreads(1)
+    return run_tuning(config, args) if args.cv else run_plain(config, args)
+
+
+def render(results: Results | CvResults) -> str:
+    """The markdown report of either mode."""
+    if isinstance(results, CvResults):
+        return cv_report.render(results)
+    return report.render(results)
+
+
+def to_json(results: Results | CvResults) -> Any:
+    """The raw numbers of either mode."""
+    if isinstance(results, CvResults):
+        return cv_report.to_json(results)
+    return report.to_json(results)
+
+
+def stem(results: Results | CvResults) -> str:
+    """``tracking_cv`` for a cross-validation, else ``tracking``."""
+    return "tracking_cv" if isinstance(results, CvResults) else "tracking"
+
+
+def figures(results: Results | CvResults, out: Path) -> list[str]:
+    """The bar chart ``tracking.png`` (the contact sheets were written while running)."""
+    if isinstance(results, CvResults):
+        return []
+    plot_scores(results.sets, results.trackers, out / "tracking.png")
+    return ["tracking.png", *results.sheets]
 
 
 def names(text: str) -> list[str]:
@@ -166,31 +178,63 @@ def names(text: str) -> list[str]:
     return [part.strip() for part in text.split(",") if part.strip()]
 
 
-def tracker_names(text: str) -> list[str]:
-    """A comma-separated list of known tracker names."""
-    chosen = names(text)
-    unknown = [name for name in chosen if name not in TRACKERS]
-    if unknown or not chosen:
-        raise argparse.ArgumentTypeError(f"unknown trackers {unknown}; choose from {TRACKERS}")
-    return chosen
+def choices(allowed: Sequence[str]) -> Any:
+    """An argparse type: a non-empty comma-separated list of names from ``allowed``."""
+
+    def parse(text: str) -> list[str]:
+        chosen = names(text)
+        unknown = [name for name in chosen if name not in allowed]
+        if unknown or not chosen:
+            raise argparse.ArgumentTypeError(f"unknown {unknown}; choose from {allowed}")
+        return chosen
+
+    return parse
+
+
+def count(least: int) -> Any:
+    """An argparse type: an integer of at least ``least``."""
+
+    def parse(text: str) -> int:
+        value = int(text)
+        if value < least:
+            raise argparse.ArgumentTypeError(f"must be at least {least}; got {value}")
+        return value
+
+    return parse
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
-    """``--sequences a,b`` and ``--trackers x,y``."""
+    """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv`` and ``--folds``."""
+    parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
     )
     parser.add_argument(
-        "--trackers", type=tracker_names, default=list(TRACKERS), help="efdm,static,skimage"
+        "--trackers", type=choices(TRACKERS), default=list(TRACKERS), help=",".join(TRACKERS)
     )
+    parser.add_argument(
+        "--workers", type=count(1), default=WORKERS, help="processes for the untimed sets"
+    )
+    parser.add_argument(
+        "--cv",
+        type=parse_axis,
+        action="append",
+        default=[],
+        metavar="OPTION=V1,V2",
+        help="cross-validate efdm's option over these values (JSON); repeat for a grid",
+    )
+    parser.add_argument("--folds", type=count(2), default=FOLDS, help="cross-validation folds")
 
 
-def figures(results: Results, out: Path) -> list[str]:
-    """The bar chart ``tracking.png`` (the contact sheets were written while running)."""
-    plot_scores(results.davis, results.synthetic, results.trackers, out / "tracking.png")
-    return ["tracking.png", *results.sheets]
-
-
-BENCHMARK = Benchmark(
-    "tracking", __doc__, FULL, QUICK, run, render, to_json, figures=figures, arguments=arguments
+BENCHMARK: Benchmark[Config, Results | CvResults] = Benchmark(
+    "tracking",
+    __doc__,
+    FULL,
+    QUICK,
+    run,
+    render,
+    to_json,
+    stem_of=stem,
+    figures=figures,
+    arguments=arguments,
 )

@@ -1,9 +1,15 @@
-"""Tracking benchmark pictures: the J bar chart and the contact sheets."""
+"""Tracking benchmark pictures: the J bar chart and the contact sheets.
+
+Contact sheets are written for the clips where efdm scores lowest: the DAVIS sequences of
+every set that ran together (``tracking_sheet_davis_<name>.jpg``, kept out of git by
+``.gitignore``: the data's terms allow evaluation, not copies in the repository) and, apart,
+the synthetic conditions (``tracking_sheet_synthetic_<name>.jpg``).
+"""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -12,15 +18,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench.common.data import Clip, Frame
+from bench.tracking.goals import GOALS
 from bench.tracking.run import ClipResult, mean_j
+from bench.tracking.sets import ClipSpec, is_davis
+from bench.tracking.tables import worst_first
 from bench.tracking.trackers import Nodes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-DAVIS_GOAL = 0.65
-SYNTHETIC_GOAL = 0.95
-BEST_REFERENCE = ("rigid + snap (README)", 0.581)
+REFERENCE_LINES = {
+    "davis-train": ("tracker when the set arrived (README)", 0.547),
+    "davis-val": ("rigid + snap (README, frames 1..T)", 0.581),
+}
 BAR_COLOURS = {"efdm": "tab:red", "static": "tab:grey", "skimage": "tab:blue"}
 SHEET_COLOURS = {"static": (160, 160, 160), "skimage": (255, 140, 0), "efdm": (0, 0, 255)}
 """BGR colours of the contours on the contact sheets; drawn in this order, efdm on top."""
@@ -65,44 +75,40 @@ def limited_note(results: Sequence[ClipResult]) -> str:
             if run.frames < r.frames
         }
     )
-    return f"\n({'; '.join(limited)})" if limited else ""
+    return f" ({'; '.join(limited)})" if limited else ""
 
 
 def plot_scores(
-    davis: Sequence[ClipResult],
-    synthetic: Sequence[ClipResult],
-    trackers: Sequence[str],
-    path: Path,
+    sets: Mapping[str, Sequence[ClipResult]], trackers: Sequence[str], path: Path
 ) -> None:
-    """Mean J per DAVIS sequence and per synthetic condition, with the goal lines."""
+    """Mean J per clip of every set (one panel each, stacked), with the goal lines."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = [(davis, "DAVIS-2016", DAVIS_GOAL), (synthetic, "synthetic", SYNTHETIC_GOAL)]
-    panels = [p for p in panels if p[0]]
+    panels = [(name, clips) for name, clips in sets.items() if clips]
     if not panels:
         return
-    widths = [len(p[0]) + (1 if p[1].startswith("DAVIS") else 0) for p in panels]
+    widest = max(len(clips) + 1 for _, clips in panels)
     fig, axes = plt.subplots(
-        1,
         len(panels),
-        figsize=(max(8.0, 2.5 + 0.62 * sum(widths)), 4.8),
+        1,
+        figsize=(max(8.0, 2.5 + 0.38 * widest), 3.8 * len(panels)),
         layout="constrained",
         squeeze=False,
-        gridspec_kw={"width_ratios": widths},
     )
-    for ax, (results, title, goal) in zip(axes[0], panels, strict=True):
-        draw_bars(ax, results, trackers, with_mean=title.startswith("DAVIS"))
+    for ax, (name, clips) in zip(axes[:, 0], panels, strict=True):
+        draw_bars(ax, clips, trackers, with_mean=is_davis(name))
+        goal = GOALS[name]
         ax.axhline(goal, color="black", linestyle="--", linewidth=1, label=f"goal {goal:g}")
-        if title.startswith("DAVIS"):
-            name, value = BEST_REFERENCE
-            ax.axhline(value, color="tab:green", linestyle=":", linewidth=1.5, label=name)
-        ax.set_title(f"{title}: mean J over frames 1..T{limited_note(results)}", fontsize=10)
-        ax.legend(fontsize=7, loc="upper center", ncol=3)
+        if name in REFERENCE_LINES:
+            label, value = REFERENCE_LINES[name]
+            ax.axhline(value, color="tab:green", linestyle=":", linewidth=1.5, label=label)
+        ax.set_title(f"{name}: mean J over frames 1..T-2{limited_note(clips)}", fontsize=10)
+        ax.legend(fontsize=7, loc="upper center", ncol=5)
     fig.suptitle("Contour tracking: mean J per sequence (128 nodes)")
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
@@ -176,3 +182,26 @@ def write_sheet(image: NDArray[np.uint8], path: Path) -> None:
     """Save a contact sheet as JPEG (quality 88)."""
     if not cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, 88]):
         raise OSError(f"cannot write {path}")
+
+
+def save_sheet(clip: Clip, result: ClipResult, out: Path) -> str:
+    """Write ``tracking_sheet_<davis|synthetic>_<name>.jpg`` into ``out``; the file name."""
+    kind = "davis" if is_davis(clip.source) else "synthetic"
+    file_name = f"tracking_sheet_{kind}_{clip.name}.jpg"
+    out.mkdir(parents=True, exist_ok=True)
+    write_sheet(contact_sheet(clip, result), out / file_name)
+    return file_name
+
+
+def write_sheets(
+    sets: Mapping[str, Sequence[ClipResult]], davis: int, synthetic: int, out: Path
+) -> list[str]:
+    """Sheets of the ``davis`` DAVIS clips (all sets together) and the ``synthetic`` synthetic
+    conditions where efdm scores lowest (the first ones when efdm did not run), worst first;
+    the clips are loaded again (the results keep the contours, not the frames)."""
+    davis_clips = [c for name, clips in sets.items() if is_davis(name) for c in clips]
+    chosen = [
+        *worst_first(davis_clips)[:davis],
+        *worst_first(sets.get("synthetic", []))[:synthetic],
+    ]
+    return [save_sheet(ClipSpec(c.source, c.name, c.frames).load(), c, out) for c in chosen]

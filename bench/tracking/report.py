@@ -1,8 +1,7 @@
-"""Tracking benchmark results: goals, the markdown report and the raw JSON."""
+"""The plain tracking run's results (no tuning): goals, the markdown report and the raw JSON."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -18,16 +17,17 @@ from bench.common.report import (
     header,
     load_line,
     md_table,
-    verdict,
 )
 from bench.tracking.config import NODES, Config
-from bench.tracking.plots import DAVIS_GOAL, SYNTHETIC_GOAL
-from bench.tracking.run import ClipResult, mean_j, pooled_median_ms
+from bench.tracking.goals import accuracy_goals, speed_goals
+from bench.tracking.metrics import SetScore
+from bench.tracking.run import ClipResult, mean_j
+from bench.tracking.sets import TITLES
+from bench.tracking.tables import SCORE_HEADERS, score_cells, sequence_table, timing_table
 from bench.tracking.trackers import SKIMAGE_PARAMS, SKIMAGE_SIGMA
 
-SPEEDUP_GOAL = 20.0
-FPS_GOAL = 100.0
-REFERENCE_SEQUENCES = ("blackswan", "car-shadow", "dog", "soapbox", "breakdance")
+PLAIN = "plain: defaults fixed, no tuning"
+"""How the plain run's training figures were obtained."""
 REFERENCES: dict[str, tuple[float, ...]] = {
     "static": (0.547, 0.402, 0.325, 0.133, 0.234, 0.328),
     "edge+EFDM": (0.586, 0.501, 0.440, 0.360, 0.259, 0.429),
@@ -35,185 +35,129 @@ REFERENCES: dict[str, tuple[float, ...]] = {
     "rigid+snap": (0.867, 0.845, 0.384, 0.567, 0.242, 0.581),
     "skimage": (0.087, 0.428, 0.083, 0.146, 0.057, 0.160),
 }
-"""Mean J of the DAVIS README's reference trackers: per sequence, then the mean."""
+"""J of the validation README's reference trackers (blackswan, car-shadow, dog, soapbox,
+breakdance, mean), measured over frames 1..T (the last frame counted)."""
+TRAIN_REFERENCE = (0.547, 0.291)
+"""Mean J and decay of the tracker when the training set arrived (its README; same protocol)."""
 
 
 @dataclass(slots=True)
 class Results:
-    """Everything one run measured."""
+    """Everything one plain run measured.
+
+    Attributes
+    ----------
+    sets : dict of str to list of ClipResult
+        The clips of every set that ran, in :data:`bench.tracking.config.SETS` order.
+    timed : str or None
+        The set tracked in this process, alone: the speed figures' clips.
+    workers : int
+        Worker processes that tracked the other sets.
+    partial : tuple of str
+        Sets not run in full (``--quick``, ``--sequences``).
+    """
 
     config: Config
     trackers: tuple[str, ...]
-    davis: list[ClipResult]
-    synthetic: list[ClipResult]
+    sets: dict[str, list[ClipResult]]
+    timed: str | None
+    workers: int
     machine: dict[str, str]
     wall_seconds: float
+    partial: tuple[str, ...] = ()
     notes: list[str] = field(default_factory=list)
     unavailable: dict[str, str] = field(default_factory=dict)
     sheets: list[str] = field(default_factory=list)
 
 
-def reference(tracker: str, sequence: str) -> float:
-    """The README's J of a reference tracker on a sequence (``"mean"``: over the five)."""
-    names = (*REFERENCE_SEQUENCES, "mean")
-    return REFERENCES[tracker][names.index(sequence)] if sequence in names else math.nan
+def efdm_score(clips: Sequence[ClipResult]) -> SetScore:
+    """efdm's scores on a set."""
+    return SetScore.of(c.runs["efdm"] for c in clips if "efdm" in c.runs)
 
 
-def speed_clips(results: Results) -> tuple[list[ClipResult], str]:
-    """The clips the speed goals are measured on: DAVIS 480p, else synthetic."""
-    if results.davis:
-        return results.davis, "DAVIS 480p"
-    return results.synthetic, "synthetic 480x640"
-
-
-def partial_davis(results: Results) -> bool:
-    """Whether the DAVIS part is not the README's five full sequences."""
-    names = {c.name for c in results.davis}
-    return names != set(REFERENCE_SEQUENCES) or results.config.davis_frames is not None
-
-
-def score_goal(label: str, value: float, target: float) -> GoalLine:
-    """A ``mean J >= target`` goal."""
-    return GoalLine.at_least(label, value, fmt(value, ".3f"), target, f">= {target:g}")
+def speed_where(name: str) -> str:
+    """How the goals name the timed set's frames."""
+    return "synthetic 480x640" if name == "synthetic" else f"{name} 480p"
 
 
 def goals(results: Results) -> list[GoalLine]:
-    """Every goal line: DAVIS mean J, each synthetic condition, speed-up and frame rate."""
-    lines: list[GoalLine] = []
-    if results.davis:
-        subset = " *" if partial_davis(results) else ""
-        value = mean_j(results.davis, "efdm")
-        lines.append(score_goal(f"DAVIS mean J (efdm){subset}", value, DAVIS_GOAL))
-    for clip in results.synthetic:
-        value = clip.runs["efdm"].mean_j if "efdm" in clip.runs else math.nan
-        lines.append(score_goal(f"synthetic {clip.name}: mean IoU (efdm)", value, SYNTHETIC_GOAL))
-    clips, where = speed_clips(results)
-    efdm_ms, skimage_ms = pooled_median_ms(clips, "efdm"), pooled_median_ms(clips, "skimage")
-    speedup = skimage_ms / efdm_ms
-    lines.append(
-        GoalLine.at_least(
-            f"speed-up efdm vs skimage ({where}, median ms/frame)",
-            speedup,
-            f"{speedup:.1f}x (efdm {efdm_ms:.2f} ms, skimage {skimage_ms:.1f} ms)"
-            if math.isfinite(speedup)
-            else "-",
-            SPEEDUP_GOAL,
-            f">= {SPEEDUP_GOAL:g}x",
-        )
-    )
-    fps = 1e3 / efdm_ms
-    lines.append(
-        GoalLine.at_least(
-            f"efdm frames/s ({where}, {NODES} nodes, single thread)",
-            fps,
-            f"{fps:.0f} fps (median {efdm_ms:.2f} ms)" if math.isfinite(fps) else "-",
-            FPS_GOAL,
-            f">= {FPS_GOAL:g} fps",
-        )
-    )
+    """Every goal line: accuracy per set (plain figures), then speed on the timed set."""
+    scores = {name: efdm_score(clips) for name, clips in results.sets.items() if clips}
+    if "efdm" not in results.trackers:
+        scores = {}
+    synthetic = results.sets.get("synthetic", [])
+    lines = accuracy_goals(scores, synthetic, PLAIN, results.partial)
+    if results.timed is not None:
+        lines += speed_goals(results.sets[results.timed], speed_where(results.timed))
     return lines
 
 
-def j_cell(clip: ClipResult, tracker: str) -> str:
-    """A clip's mean J for one tracker, marked when the tracker failed or was limited."""
-    run = clip.runs.get(tracker)
-    if run is None:
-        return "-"
-    mark = " (failed)" if run.error else ""
-    limited = f" ({run.frames} fr.)" if run.frames < clip.frames else ""
-    return f"{fmt(run.mean_j, '.3f')}{limited}{mark}"
-
-
-def davis_section(results: Results) -> str:
-    """DAVIS mean J per sequence beside the README's reference numbers, and timings."""
-    trackers = results.trackers
-    refs = list(REFERENCES)
+def summary_section(results: Results) -> str:
+    """efdm's scores per set, beside the baselines' J."""
+    others = [t for t in results.trackers if t != "efdm"]
     rows = [
         [
-            c.name,
-            str(c.frames),
-            *(j_cell(c, t) for t in trackers),
-            *(fmt(reference(r, c.name), ".3f") for r in refs),
+            name + (" *" if name in results.partial else ""),
+            *score_cells(efdm_score(clips)),
+            *(fmt(mean_j(clips, t), ".3f") for t in others),
         ]
-        for c in results.davis
+        for name, clips in results.sets.items()
+        if clips
     ]
-    rows.append(
-        [
-            "**mean**",
-            str(sum(c.frames for c in results.davis)),
-            *(f"**{fmt(mean_j(results.davis, t), '.3f')}**" for t in trackers),
-            *(fmt(reference(r, "mean"), ".3f") for r in refs),
-        ]
-    )
-    headers = ["sequence", "frames", *trackers, *(f"ref. {r}" for r in refs)]
+    val = ", ".join(f"{name} {values[-1]:.3f}" for name, values in REFERENCES.items())
+    train_j, train_decay = TRAIN_REFERENCE
     return "\n\n".join(
         [
-            "## DAVIS-2016 (480p): mean J over frames 1..T",
-            "`ref.` columns: the reference scores of `../shared/data/davis2016/README.md` "
-            "(same protocol, 128 nodes): static, plain edge attraction + EFDM smoothing, rigid "
-            "similarity motion (Lucas-Kanade + RANSAC), that + edge snapping (6 px) + EFDM "
-            f"smoothing, scikit-image active_contour. Goal: efdm mean J >= {DAVIS_GOAL:g}.",
-            md_table(headers, rows),
-            "### Time per frame (median ms over frames 1..T; step calls only, one thread)",
-            timing_table(results.davis, trackers),
+            "## Summary (efdm, frames 1..T-2; no tuning: the defaults are fixed)",
+            md_table(["set", *SCORE_HEADERS, *(f"{t} J" for t in others)], rows),
+            "J: mean over sequences of the per-sequence mean; decay: mean over sequences of "
+            "the first quarter's J minus the last quarter's (positive: the track degrades); "
+            "the status columns pool every scored frame of the set (in brackets: how many "
+            "frames have that IoU). References: the tracker when the training set arrived, "
+            f"J {train_j:.3f}, decay +{train_decay:.3f} (`../shared/data/davis2016-train/"
+            f"README.md`, same protocol); on the validation five (frames 1..T, the last "
+            f"frame counted): {val} (`../shared/data/davis2016/README.md`).",
         ]
     )
 
 
-def timing_table(clips: Sequence[ClipResult], trackers: Sequence[str]) -> str:
-    """Median ms per frame per tracker, efdm frames/s and speed-up against skimage."""
-    rows: list[list[str]] = []
-    for clip in [*clips, None]:
-        chosen = list(clips) if clip is None else [clip]
-        medians = {t: pooled_median_ms(chosen, t) for t in trackers}
-        efdm = medians.get("efdm", math.nan)
-        rows.append(
-            [
-                "**all frames**" if clip is None else clip.name,
-                *(fmt(medians[t], ".2f") for t in trackers),
-                fmt(1e3 / efdm, ".0f"),
-                fmt(medians.get("skimage", math.nan) / efdm, ".1f"),
-            ]
-        )
-    return md_table(["clip", *(f"{t} ms" for t in trackers), "efdm fps", "skimage/efdm"], rows)
-
-
-def synthetic_section(results: Results) -> str:
-    """Mean IoU per synthetic condition, and timings."""
-    trackers = results.trackers
-    rows = [
-        [c.name, str(c.frames), *(j_cell(c, t) for t in trackers), goal_verdict(c)]
-        for c in results.synthetic
-    ]
-    limit = results.config.skimage_synthetic
-    skimage_note = (
+def set_section(results: Results, name: str) -> str:
+    """One set's per-sequence table, worst efdm J first."""
+    clips = results.sets[name]
+    others = [t for t in results.trackers if t != "efdm"]
+    limit = results.config.skimage_synthetic if name == "synthetic" else None
+    note = (
         f" skimage tracks only the first {limit} frames of each condition (it is slow); its J "
         f"is the mean over frames 1..{limit - 1}, not comparable one-to-one with the others."
-        if limit is not None and "skimage" in trackers
+        if limit is not None and "skimage" in others
         else ""
     )
     return "\n\n".join(
         [
-            "## Synthetic sequences (`engine.testing.synthetic`): mean IoU over frames 1..T",
-            f"Seed 0, 480 x 640, {results.config.synthetic_length} frames per condition. Goal: "
-            f"efdm >= {SYNTHETIC_GOAL:g} on every condition.{skimage_note}",
-            md_table(["condition", "frames", *trackers, "efdm goal"], rows),
-            "### Time per frame (median ms over frames 1..T; step calls only, one thread)",
-            timing_table(results.synthetic, trackers),
+            f"## {name}: {TITLES[name]}",
+            f"{len(clips)} clips, worst efdm J first; tracking / uncertain / lost: shares of the "
+            "scored frames efdm reported so; then how many of the frames with low (high) IoU "
+            f"it reported uncertain or lost (tracking).{note}",
+            sequence_table(clips, others),
         ]
     )
 
 
-def goal_verdict(clip: ClipResult) -> str:
-    """PASS / FAIL of the synthetic goal for one condition."""
-    run = clip.runs.get("efdm")
-    if run is None or math.isnan(run.mean_j):
-        return verdict(None)
-    return verdict(run.mean_j >= SYNTHETIC_GOAL)
+def speed_section(results: Results) -> str:
+    """Median ms per frame on the timed set."""
+    if results.timed is None:
+        return ""
+    return "\n\n".join(
+        [
+            f"## Speed: {results.timed} (median ms over frames 1..T-1; step calls only, one "
+            "thread, tracked in this process with no worker running)",
+            timing_table(results.sets[results.timed], results.trackers),
+        ]
+    )
 
 
 def summary(values: Sequence[float] | None, how: Callable[[Any], Any], spec: str) -> str:
-    """``how`` (mean, max, ...) of a diagnostic over frames 1..T, formatted (``-``: none)."""
+    """``how`` (mean, max, ...) of a diagnostic over frames 1..T-1, formatted (``-``: none)."""
     if values is None or len(values) < 2:
         return "-"
     return format(float(how(np.asarray(values[1:], dtype=np.float64))), spec)
@@ -222,7 +166,7 @@ def summary(values: Sequence[float] | None, how: Callable[[Any], Any], spec: str
 def diagnostics_section(results: Results) -> str:
     """efdm's own per-frame diagnostics, summarised per clip."""
     rows: list[list[str]] = []
-    for clip in [*results.davis, *results.synthetic]:
+    for clip in (c for clips in results.sets.values() for c in clips):
         run = clip.runs.get("efdm")
         if run is None or not run.ms:
             continue
@@ -236,59 +180,65 @@ def diagnostics_section(results: Results) -> str:
                 summary(extras.get("converged"), np.mean, ".0%"),
                 summary(extras.get("confidence"), np.mean, ".2f"),
                 summary(extras.get("confidence"), np.min, ".2f"),
-                fmt(min(run.scores, default=math.nan), ".3f"),
+                fmt(min(run.scores, default=float("nan")), ".3f"),
             ]
         )
     if not rows:
         return ""
-    headers = [
-        "clip",
-        "frame 0 ms",
-        "iter. mean",
-        "iter. max",
-        "converged",
-        "conf. mean",
-        "conf. min",
-        "worst J",
-    ]
-    title = "## efdm diagnostics (frames 1..T; frame 0 is the initialisation step)"
+    headers = ["clip", "frame 0 ms", "iter. mean", "iter. max", "converged"]
+    headers += ["conf. mean", "conf. min", "worst J"]
+    title = "## efdm diagnostics (frames 1..T-1; frame 0 is the initialisation step)"
     return "\n\n".join([title, md_table(headers, rows)])
 
 
+def protocol_notes() -> list[str]:
+    """The notes on the protocol and the lost detection (also the CV report's)."""
+    return [
+        f"- Protocol (DAVIS): the first mask's largest outer contour resampled to {NODES} "
+        "nodes (`engine.geometry.mask_to_contour`) is the initial contour; trackers then see "
+        "only the BGR frames, frame 0 first. J = IoU of the filled contour "
+        "(`engine.geometry.contour_to_mask`) with the mask (`engine.geometry.mask_iou`); the "
+        "first and the last frame of each clip are left out (frames 1..T-2 scored), a set's J "
+        "is the mean of the per-clip means. Decay: J of the first quarter of the scored frames "
+        "(max(1, n // 4) of n) minus that of the last quarter. A tracker that raises scores 0 "
+        "on the frames it did not track.",
+        "- Lost detection: of the scored frames of a set, pooled, the share with IoU < 0.2 "
+        "that efdm reported `uncertain` or `lost`, the share with IoU >= 0.6 it reported "
+        "`tracking`, and the mean |confidence - IoU|. The confidence model "
+        "(`engine/tracking/confidence.py`) was fitted on the thirty training sequences: on "
+        "them these figures are in-sample.",
+    ]
+
+
 def notes_section(results: Results) -> str:
-    """Protocol, baseline settings, limits, failures and skipped parts."""
+    """Protocol, timing, baseline settings, limits, failures and skipped parts."""
     params = ", ".join(f"{k}={v}" for k, v in SKIMAGE_PARAMS.items())
     lines = [
         "## Notes",
         "",
-        f"- Protocol: the first mask's largest outer contour resampled to {NODES} nodes "
-        "(`engine.geometry.mask_to_contour`) is the initial contour; trackers then see only "
-        "the BGR frames, frame 0 first. J = IoU of the filled contour "
-        "(`engine.geometry.contour_to_mask`) with the mask (`engine.geometry.mask_iou`), mean "
-        "over frames 1..T per clip, then over clips. A tracker that raises scores 0 on the "
-        "frames it did not track.",
+        *protocol_notes(),
         "- Timing: only the `step` calls (frame decoding and scoring excluded), one thread "
-        "(`cv2.setNumThreads(1)`; OMP/OPENBLAS/MKL/NUMBA_NUM_THREADS=1), median over frames 1..T "
-        "(frame 0 is initialisation). Each tracker tracks a whole clip uninterrupted, as in "
-        "use; on each clip the trackers run one after the other, in an order that alternates "
-        "from clip to clip so that changes of machine load fall on all of them. (Taking turns "
-        "frame by frame, as this benchmark once did, lets the 80 ms skimage step evict efdm's "
-        "working set from the caches before every efdm step: about 25 % slower efdm steps.)",
+        "(`cv2.setNumThreads(1)`; OMP/OPENBLAS/MKL/NUMBA_NUM_THREADS=1). The speed figures "
+        "come from one set tracked in this process before any worker starts, each tracker "
+        "uninterrupted through a clip, the trackers one after the other in an order that "
+        f"alternates from clip to clip. The other sets are tracked by {results.workers} worker "
+        "process(es) at once: their times (in the JSON) share the machine and are "
+        "indicative only.",
         f"- skimage baseline: `skimage.filters.gaussian(grey, sigma={SKIMAGE_SIGMA:g})` then "
         f"`skimage.segmentation.active_contour(..., {params})`, re-initialised on every frame "
         "from the previous result ((row, col) converted from/to [x, y]); the settings of the "
-        "DAVIS README's reference table.",
+        "validation README's reference table.",
     ]
     if results.config.name == "quick":
         lines.append("- `--quick` run (smoke test): few sequences, truncated.")
-    if results.davis and partial_davis(results):
+    if results.partial:
         lines.append(
-            "- `*`: not all five DAVIS sequences in full, so the mean J is not comparable "
-            "with the references' mean."
+            f"- `*`: {', '.join(results.partial)} not run in full: not comparable with the "
+            "goals and references."
         )
     lines += [f"- {note}" for note in results.notes]
     lines += [f"- tracker `{t}` not run: {why}" for t, why in results.unavailable.items()]
-    for clip in [*results.davis, *results.synthetic]:
+    for clip in (c for clips in results.sets.values() for c in clips):
         lines += [
             f"- `{name}` failed on {clip.source} {clip.name} at {run.error}"
             for name, run in clip.runs.items()
@@ -308,18 +258,20 @@ def render(results: Results) -> str:
         f"- python {m['python']}, numpy {m['numpy']}, opencv {m['opencv']}, "
         f"scikit-image {m['skimage']}",
         f"- run: `{results.config.name}`, trackers {', '.join(results.trackers) or 'none'}, "
-        f"{results.wall_seconds:.0f} s wall time",
+        f"sets {', '.join(results.sets) or 'none'}, {results.wall_seconds:.0f} s wall time "
+        f"({results.workers} worker process(es); timed set: {results.timed or 'none'})",
     )
     sections = ["\n".join(top), "## Goals\n\n" + goals_table(goals(results))]
-    if results.davis:
-        sections.append(davis_section(results))
-    if results.synthetic:
-        sections.append(synthetic_section(results))
-    sections += [s for s in (diagnostics_section(results), notes_section(results)) if s]
+    if any(results.sets.values()):
+        sections.append(summary_section(results))
+    sections += [set_section(results, name) for name, clips in results.sets.items() if clips]
+    sections += [s for s in (speed_section(results), diagnostics_section(results)) if s]
+    sections.append(notes_section(results))
     if results.sheets:
         sections.append(
-            "Contact sheets (every DAVIS sequence; the synthetic conditions where efdm scores "
-            "lowest): " + ", ".join(f"`{s}`" for s in results.sheets) + "."
+            "Contact sheets (the DAVIS sequences where efdm scores lowest, training and "
+            "validation together, written but kept out of git; the synthetic conditions where "
+            "it scores lowest): " + ", ".join(f"`{s}`" for s in results.sheets) + "."
         )
     return "\n\n".join(sections) + "\n"
 
@@ -330,16 +282,33 @@ def clip_json(clip: ClipResult) -> dict[str, Any]:
         name: {
             "frames_tracked": run.frames,
             "mean_j": finite(run.mean_j),
-            "j": run.scores,
-            "j_frame0": run.iou[0] if run.iou else None,
+            "decay": finite(run.decay),
+            "iou": run.iou,
             "median_ms": finite(run.median_ms),
             "ms": run.ms,
             "extras": run.extras,
+            "status": run.status,
             "error": run.error,
         }
         for name, run in clip.runs.items()
     }
     return {"name": clip.name, "frames": clip.frames, "shape": list(clip.shape), "runs": runs}
+
+
+def score_json(score: SetScore) -> dict[str, Any]:
+    """A set's scores as JSON data."""
+    s = score.status
+    return {
+        "sequences": score.sequences,
+        "mean_j": finite(score.mean_j),
+        "decay": finite(score.decay),
+        "scored_frames": s.frames,
+        "low_iou_frames": s.low,
+        "low_iou_uncertain_or_lost": finite(s.flagged),
+        "high_iou_frames": s.high,
+        "high_iou_tracking": finite(s.kept),
+        "mean_abs_confidence_error": finite(s.error),
+    }
 
 
 def to_json(results: Results) -> dict[str, Any]:
@@ -348,11 +317,25 @@ def to_json(results: Results) -> dict[str, Any]:
         **run_json(results),
         "trackers": list(results.trackers),
         "unavailable": results.unavailable,
+        "timed_set": results.timed,
+        "workers": results.workers,
+        "partial_sets": list(results.partial),
         "skimage_params": SKIMAGE_PARAMS,
         "goals": goals_json(goals(results)),
-        "davis": [clip_json(c) for c in results.davis],
-        "synthetic": [clip_json(c) for c in results.synthetic],
-        "davis_references": {k: list(v) for k, v in REFERENCES.items()},
+        "scores": {
+            name: {
+                "efdm": score_json(efdm_score(clips)),
+                **{
+                    t: {"mean_j": finite(mean_j(clips, t))} for t in results.trackers if t != "efdm"
+                },
+            }
+            for name, clips in results.sets.items()
+        },
+        "sets": {name: [clip_json(c) for c in clips] for name, clips in results.sets.items()},
+        "davis_val_references": {k: list(v) for k, v in REFERENCES.items()},
         "notes": results.notes,
-        "units": {"j": "IoU of frames 1..T", "ms": "milliseconds per step call, frame 0 first"},
+        "units": {
+            "iou": "IoU of every tracked frame, frame 0 first; frames 1..T-2 are scored",
+            "ms": "milliseconds per step call, frame 0 first",
+        },
     }

@@ -1,12 +1,12 @@
-"""Running the trackers over clips: per-frame J and timings.
+"""Running the trackers over clips: per-frame J, status and timings.
 
 Protocol (DAVIS-2016, semi-supervised): the first frame's mask gives the
 initial contour (its largest outer contour resampled to :data:`NODES`
 nodes); the tracker then sees only frames.  J of a frame is the IoU of the
 filled tracked contour with the ground-truth mask; a clip's score is the mean
-over frames 1..T.  Only the ``step`` calls are timed; each tracker tracks a
-whole clip uninterrupted, the trackers one after the other in an order that
-alternates from clip to clip.
+over frames 1..T-2 (:mod:`bench.tracking.metrics`).  Only the ``step`` calls
+are timed; each tracker tracks a whole clip uninterrupted, the trackers one
+after the other in an order that alternates from clip to clip.
 """
 
 from __future__ import annotations
@@ -17,11 +17,10 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from bench.common.data import Clip
 from bench.common.log import log
 from bench.tracking.config import NODES
+from bench.tracking.metrics import StatusScore, decay, mean, scored_indices
 from bench.tracking.trackers import ContourTracker, Factory, Nodes
 from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
 
@@ -36,36 +35,62 @@ class TrackRun:
         Tracker name.
     frames : int
         Frames of the clip the tracker was asked to track (it may be limited).
+    total : int
+        Frames of the clip.
     iou : list of float
-        J of every tracked frame, frame 0 included (J over frames 1.. is the score).
+        J of every tracked frame, frame 0 included (the scored frames: :attr:`scored`).
     ms : list of float
         Milliseconds of every ``step`` call, frame 0 (initialisation) included.
     nodes : list of numpy.ndarray
         The contour of every tracked frame (kept for the contact sheets, not in the JSON).
     extras : dict of str to list of float
         Per-frame diagnostics (efdm).
+    status : list of str
+        The tracker's own verdict on every tracked frame (efdm; empty for the others).
     error : str or None
         What went wrong, if the tracker raised; the untracked frames then count J = 0.
     """
 
     tracker: str
     frames: int
+    total: int
     iou: list[float] = field(default_factory=list)
     ms: list[float] = field(default_factory=list)
     nodes: list[Nodes] = field(default_factory=list)
     extras: dict[str, list[float]] = field(default_factory=dict)
+    status: list[str] = field(default_factory=list)
     error: str | None = None
 
     @property
+    def scored(self) -> range:
+        """The scored frames: 1..T-2 (1..frames-1 when limited to fewer frames)."""
+        return scored_indices(self.frames, self.total)
+
+    @property
     def scores(self) -> list[float]:
-        """J of frames 1..frames-1; frames never tracked because of an error count 0."""
-        return self.iou[1:] + [0.0] * (self.frames - max(len(self.iou), 1))
+        """J of the scored frames; frames never tracked because of an error count 0."""
+        return [self.iou[i] if i < len(self.iou) else 0.0 for i in self.scored]
 
     @property
     def mean_j(self) -> float:
-        """Mean J over frames 1..frames-1 (nan for a one-frame clip)."""
-        scores = self.scores
-        return float(np.mean(scores)) if scores else math.nan
+        """Mean J over the scored frames (nan when there are none)."""
+        return mean(self.scores)
+
+    @property
+    def decay(self) -> float:
+        """J of the first quarter of the scored frames minus that of the last quarter."""
+        return decay(self.scores)
+
+    @property
+    def status_score(self) -> StatusScore:
+        """The tracker's status and confidence against J, over the scored frames it tracked."""
+        tracked = self.scored[: len(self.iou)]
+        confidence = self.extras.get("confidence", [])
+        return StatusScore.of_frames(
+            [self.iou[i] for i in tracked],
+            [self.status[i] for i in tracked if i < len(self.status)],
+            [confidence[i] for i in tracked if i < len(confidence)],
+        )
 
     @property
     def step_ms(self) -> list[float]:
@@ -103,6 +128,8 @@ def record_step(tracker: ContourTracker, run: TrackRun, clip: Clip, index: int) 
     filled = contour_to_mask(step.nodes, clip.shape)
     run.iou.append(float(mask_iou(filled, clip.masks[index])))
     run.nodes.append(step.nodes)
+    if step.status is not None:
+        run.status.append(step.status)
     for key, value in step.extras.items():
         run.extras.setdefault(key, []).append(value)
 
@@ -119,6 +146,7 @@ def run_clip(
     limits: Mapping[str, int],
     *,
     reverse: bool = False,
+    label: str = "",
 ) -> ClipResult:
     """Every tracker on one clip, one after the other; ``limits`` caps the frames of some.
 
@@ -128,10 +156,10 @@ def run_clip(
     The order alternates from clip to clip (``reverse``) so that slow changes
     of the machine's load fall on every tracker alike.  Exceptions raised by
     a tracker are recorded in :attr:`TrackRun.error` and end that tracker's
-    run on this clip.
+    run on this clip.  ``label`` ends the progress lines (e.g. the options).
     """
     total = len(clip.frames)
-    runs = {name: TrackRun(name, min(limits.get(name, total), total)) for name in factories}
+    runs = {name: TrackRun(name, min(limits.get(name, total), total), total) for name in factories}
     names = list(factories)[::-1] if reverse else list(factories)
     for name in names:
         run = runs[name]
@@ -148,8 +176,8 @@ def run_clip(
                 break
     for run in runs.values():
         log(
-            f"{clip.source:>9} {clip.name:<18} {run.tracker:<8} J {run.mean_j:.3f}  "
-            f"median {run.median_ms:8.2f} ms/frame  ({run.frames} frames)"
+            f"{clip.source:>11} {clip.name:<18} {run.tracker:<8} J {run.mean_j:.3f}  "
+            f"median {run.median_ms:8.2f} ms/frame  ({run.frames} frames){label}"
         )
     return ClipResult(clip.name, clip.source, total, clip.shape, runs)
 
@@ -162,5 +190,4 @@ def pooled_median_ms(results: Sequence[ClipResult], tracker: str) -> float:
 
 def mean_j(results: Sequence[ClipResult], tracker: str) -> float:
     """Mean over clips of the per-clip mean J (nan when the tracker ran on none)."""
-    scores = [r.runs[tracker].mean_j for r in results if tracker in r.runs]
-    return float(np.mean(scores)) if scores else math.nan
+    return mean(r.runs[tracker].mean_j for r in results if tracker in r.runs)

@@ -14,7 +14,7 @@ nodes) and then fed the frames in order, starting with frame 0; each
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -40,6 +40,8 @@ SKIMAGE_PARAMS: dict[str, Any] = {
 SKIMAGE_SIGMA = 2.0
 EFDM_EXTRAS = ("iterations", "converged", "confidence")
 """Per-frame diagnostics read from ``engine.Tracker``'s step results when present."""
+STATUSES = ("tracking", "uncertain", "lost")
+"""What ``engine.Tracker`` says of each frame (``TrackResult.status``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,10 +54,13 @@ class Step:
         ``(N, 2)`` ``[x, y]`` contour on this frame.
     extras : dict of str to float
         Diagnostics (efdm: iterations, converged, confidence).
+    status : str or None
+        The tracker's own verdict on the frame (efdm: one of :data:`STATUSES`).
     """
 
     nodes: Nodes
     extras: dict[str, float] = field(default_factory=dict)
+    status: str | None = None
 
 
 class ContourTracker(Protocol):
@@ -105,13 +110,13 @@ class SkimageTracker:
 
 
 class EfdmTracker:
-    """Adapter for ``engine.Tracker`` (``step(frame)`` returns ``.nodes`` and diagnostics)."""
+    """Adapter for ``engine.Tracker`` (``step(frame)`` returns ``.nodes``, diagnostics, status)."""
 
     def __init__(self, engine_tracker: Any) -> None:
         self._tracker = engine_tracker
 
     def step(self, frame: Frame) -> Step:
-        """One ``engine.Tracker.step``; its nodes and the diagnostics it reports."""
+        """One ``engine.Tracker.step``; its nodes, the diagnostics and the status it reports."""
         result = self._tracker.step(frame)
         nodes = np.asarray(result.nodes, dtype=np.float64)
         if nodes.ndim != 2 or nodes.shape[1] != 2:
@@ -121,31 +126,43 @@ class EfdmTracker:
             for name in EFDM_EXTRAS
             if getattr(result, name, None) is not None
         }
-        return Step(nodes, extras)
+        status = getattr(result, "status", None)
+        return Step(nodes, extras, None if status is None else str(status))
 
 
-def efdm_factory() -> Factory:
-    """A factory for the efdm tracker (raises if ``engine.Tracker`` cannot be imported)."""
-    tracker_class = importlib.import_module("engine").Tracker
+def efdm_factory(options: Mapping[str, Any] | None = None) -> Factory:
+    """A factory for the efdm tracker with ``TrackerOptions`` fields ``options`` (None: defaults).
+
+    Raises
+    ------
+    ImportError, AttributeError
+        If ``engine.Tracker`` cannot be imported.
+    ValueError
+        If an option is unknown or out of bounds (checked now, not on the first clip).
+    """
+    engine = importlib.import_module("engine")
+    chosen = dict(options or {})
+    engine.TrackerOptions.from_mapping(chosen)
 
     def make(nodes: Nodes) -> ContourTracker:
-        return EfdmTracker(tracker_class(np.array(nodes, dtype=np.float64), closed=True))
+        tracker = engine.Tracker(np.array(nodes, dtype=np.float64), closed=True, **chosen)
+        return EfdmTracker(tracker)
 
     return make
 
 
-def factory(name: str) -> Factory:
-    """The factory of tracker ``name`` (one of :data:`TRACKERS`).
+def factory(name: str, options: Mapping[str, Any] | None = None) -> Factory:
+    """The factory of tracker ``name`` (one of :data:`TRACKERS`); ``options`` are efdm's.
 
     Raises
     ------
     ImportError, AttributeError
         If the tracker's library is missing (efdm: ``engine.Tracker``).
     ValueError
-        If ``name`` is unknown.
+        If ``name`` is unknown, or an efdm option is.
     """
     if name == "efdm":
-        return efdm_factory()
+        return efdm_factory(options)
     if name == "static":
         return StaticTracker
     if name == "skimage":

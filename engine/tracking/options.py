@@ -32,9 +32,12 @@ _NUMBER_BOUNDS: dict[str, float] = {
 class TrackerOptions:
     """Tuning of :class:`engine.tracking.Tracker` and its default stages.
 
-    The defaults were chosen on the DAVIS-2016 validation sequences and the
-    synthetic conditions of :mod:`engine.testing.synthetic` (the reasons
-    below); distances are pixels of the frame.
+    The defaults were chosen, before the training sequences arrived, on the
+    five DAVIS-2016 sequences that are now the held-out validation set and on
+    the synthetic conditions of :mod:`engine.testing.synthetic` (the reasons
+    below); new choices are made by cross-validation on the thirty training
+    sequences (``python -m bench.tracking --cv``).  Distances are pixels of
+    the frame.
 
     Attributes
     ----------

@@ -1,0 +1,128 @@
+"""The tracking benchmark's goals and their lines in the reports."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+from bench.common.report import GoalLine, fmt
+from bench.tracking.config import NODES
+from bench.tracking.metrics import HIGH_IOU, LOW_IOU, SetScore
+from bench.tracking.run import ClipResult, pooled_median_ms
+
+TRAIN_GOAL = 0.65
+"""Mean J on the thirty training sequences (cross-validated when tuned)."""
+TRAIN_DECAY_GOAL = 0.20
+"""Most mean decay on the training sequences."""
+VAL_GOAL = 0.70
+"""Mean J on the five validation sequences."""
+SYNTHETIC_GOAL = 0.95
+"""Mean IoU on every synthetic condition."""
+FLAGGED_GOAL = 0.80
+"""Least share of the training frames with IoU < 0.2 reported ``uncertain`` or ``lost``."""
+KEPT_GOAL = 0.95
+"""Least share of the training frames with IoU >= 0.6 reported ``tracking``."""
+SPEEDUP_GOAL = 8.0
+"""Least speed-up over scikit-image's ``active_contour`` in the same run: quality
+may cost time, but the physics must stay far cheaper than an iterative snake."""
+MEDIAN_MS_GOAL = 10.0
+"""Most median milliseconds per 480p frame (128 nodes, one thread): real time
+with room for several objects on a live camera."""
+GOALS = {"davis-train": TRAIN_GOAL, "davis-val": VAL_GOAL, "synthetic": SYNTHETIC_GOAL}
+"""The J goal line drawn for each set."""
+IN_SAMPLE = "in-sample: the confidence model was fitted on the 30"
+
+
+def score_goal(label: str, value: float, target: float) -> GoalLine:
+    """A ``mean J >= target`` goal."""
+    return GoalLine.at_least(label, value, fmt(value, ".3f"), target, f">= {target:g}")
+
+
+def share_goal(label: str, value: float, frames: int, target: float) -> GoalLine:
+    """A ``share of frames >= target`` goal."""
+    shown = f"{fmt(100 * value, '.1f')} % of {frames} frames"
+    return GoalLine.at_least(label, value, shown, target, f">= {100 * target:g} %")
+
+
+def accuracy_goals(
+    scores: Mapping[str, SetScore],
+    synthetic: Sequence[ClipResult],
+    how: str,
+    partial: Sequence[str] = (),
+) -> list[GoalLine]:
+    """The goals of the sets that ran: training J, decay and lost detection, validation J,
+    every synthetic condition.
+
+    Parameters
+    ----------
+    scores : mapping of str to SetScore
+        efdm's scores per set (``davis-train`` cross-validated when tuned).
+    synthetic : sequence of ClipResult
+        The synthetic conditions.
+    how : str
+        How the training figures were obtained (``plain: ...`` or ``cross-validated ...``).
+    partial : sequence of str
+        Sets not run in full: their lines are marked ``*``.
+    """
+    lines: list[GoalLine] = []
+    mark = {name: " *" if name in partial else "" for name in scores}
+    train = scores.get("davis-train")
+    if train is not None:
+        star = mark["davis-train"]
+        lines += [
+            score_goal(f"davis-train mean J (efdm; {how}){star}", train.mean_j, TRAIN_GOAL),
+            GoalLine.at_most(
+                f"davis-train mean decay (efdm; {how}){star}",
+                train.decay,
+                fmt(train.decay, "+.3f"),
+                TRAIN_DECAY_GOAL,
+                f"<= {TRAIN_DECAY_GOAL:g}",
+            ),
+            share_goal(
+                f"davis-train frames with IoU < {LOW_IOU:g} reported uncertain or lost "
+                f"({IN_SAMPLE}){star}",
+                train.status.flagged,
+                train.status.low,
+                FLAGGED_GOAL,
+            ),
+            share_goal(
+                f"davis-train frames with IoU >= {HIGH_IOU:g} reported tracking "
+                f"({IN_SAMPLE}){star}",
+                train.status.kept,
+                train.status.high,
+                KEPT_GOAL,
+            ),
+        ]
+    val = scores.get("davis-val")
+    if val is not None:
+        label = f"davis-val mean J (efdm; held out, not tuned on){mark['davis-val']}"
+        lines.append(score_goal(label, val.mean_j, VAL_GOAL))
+    for clip in synthetic:
+        value = clip.runs["efdm"].mean_j if "efdm" in clip.runs else math.nan
+        lines.append(score_goal(f"synthetic {clip.name}: mean IoU (efdm)", value, SYNTHETIC_GOAL))
+    return lines
+
+
+def speed_goals(clips: Sequence[ClipResult], where: str) -> list[GoalLine]:
+    """efdm's speed-up over skimage and its frame rate (median ms per frame over ``clips``)."""
+    efdm_ms, skimage_ms = pooled_median_ms(clips, "efdm"), pooled_median_ms(clips, "skimage")
+    speedup = skimage_ms / efdm_ms
+    fps = 1e3 / efdm_ms
+    return [
+        GoalLine.at_least(
+            f"speed-up efdm vs skimage ({where}, median ms/frame)",
+            speedup,
+            f"{speedup:.1f}x (efdm {efdm_ms:.2f} ms, skimage {skimage_ms:.1f} ms)"
+            if math.isfinite(speedup)
+            else "-",
+            SPEEDUP_GOAL,
+            f">= {SPEEDUP_GOAL:g}x",
+        ),
+        GoalLine.at_most(
+            f"efdm median ms per frame ({where}, {NODES} nodes, single thread)",
+            efdm_ms,
+            f"{efdm_ms:.2f} ms ({fps:.0f} fps)" if math.isfinite(fps) else "-",
+            MEDIAN_MS_GOAL,
+            f"<= {MEDIAN_MS_GOAL:g} ms",
+        ),
+    ]

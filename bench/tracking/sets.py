@@ -1,0 +1,111 @@
+"""The benchmark's sets and the clips chosen from them.
+
+- ``davis-train``: the thirty DAVIS-2016 training sequences (``../shared/data/davis2016-train``),
+  the only ones any choice is tuned on, by cross-validation (:mod:`bench.tracking.cv`);
+- ``davis-val``: the five validation sequences (``../shared/data/davis2016``), reported and
+  never tuned on;
+- ``synthetic``: the conditions of ``engine.testing.synthetic`` (seed 0, 480 x 640).
+
+A :class:`ClipSpec` names a clip without its frames, so that a worker process loads it itself.
+A set whose data is absent is skipped with a note.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.common.data import (
+    DAVIS_ROOT,
+    DAVIS_TRAIN_ROOT,
+    Clip,
+    davis_names,
+    load_davis,
+    load_synthetic,
+    select,
+    synthetic_conditions,
+)
+from bench.common.log import log
+from bench.tracking.config import Config
+
+DAVIS_ROOTS: dict[str, Path] = {"davis-train": DAVIS_TRAIN_ROOT, "davis-val": DAVIS_ROOT}
+TITLES = {
+    "davis-train": "DAVIS-2016 training sequences (480p; tuned on by cross-validation only)",
+    "davis-val": "DAVIS-2016 validation sequences (480p; held out: reported, never tuned on)",
+    "synthetic": "synthetic sequences (`engine.testing.synthetic`, seed 0, 480 x 640)",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class ClipSpec:
+    """One clip to track, named rather than loaded.
+
+    Attributes
+    ----------
+    set : str
+        ``davis-train``, ``davis-val`` or ``synthetic``.
+    name : str
+        Sequence or condition.
+    frames : int or None
+        DAVIS: the first frames only (None: all); synthetic: the sequence's length.
+    """
+
+    set: str
+    name: str
+    frames: int | None
+
+    def load(self) -> Clip:
+        """The clip's frames and masks (its ``source`` is the set)."""
+        if self.set == "synthetic":
+            clip = load_synthetic(self.name, self.frames or 0)
+            return Clip(clip.name, self.set, clip.frames, clip.masks)
+        return load_davis(self.name, self.frames, DAVIS_ROOTS[self.set], source=self.set)
+
+
+def is_davis(set_name: str) -> bool:
+    """Whether a set is made of DAVIS sequences."""
+    return set_name in DAVIS_ROOTS
+
+
+def available(set_name: str) -> tuple[list[str], str | None]:
+    """The clips of a set present on this machine, or none and why."""
+    if is_davis(set_name):
+        root = DAVIS_ROOTS[set_name]
+        found = davis_names(root)
+        return found, None if found else f"{set_name}: no sequences found at {root}: skipped"
+    try:
+        return list(synthetic_conditions()), None
+    except (ImportError, AttributeError) as exc:
+        why = f"{type(exc).__name__}: {exc}"
+        return [], f"synthetic: engine.testing.synthetic unavailable ({why}): skipped"
+
+
+def choose(
+    config: Config, set_name: str, wanted: Sequence[str] | None
+) -> tuple[list[ClipSpec], str | None]:
+    """The clips of a set to run (``wanted`` among those present, else the configured count),
+    or none and why."""
+    names, why = available(set_name)
+    if why is not None:
+        log(why)
+        return [], why
+    count = {
+        "davis-train": config.train_count,
+        "davis-val": config.val_count,
+        "synthetic": config.synthetic_count,
+    }[set_name]
+    frames = config.synthetic_length if set_name == "synthetic" else config.davis_frames
+    return [ClipSpec(set_name, name, frames) for name in select(names, wanted, count)], None
+
+
+def is_partial(config: Config, set_name: str, specs: Sequence[ClipSpec]) -> bool:
+    """Whether a set runs less than all of it (``--quick``, ``--sequences``, a frame limit)."""
+    short = config.davis_frames is not None and is_davis(set_name)
+    return config.name == "quick" or short or len(specs) < len(available(set_name)[0])
+
+
+def limits(config: Config, set_name: str) -> dict[str, int]:
+    """Frames the slow skimage baseline tracks per clip of a set (empty: all)."""
+    limit = config.skimage_synthetic if set_name == "synthetic" else config.skimage_davis
+    return {} if limit is None else {"skimage": limit}
