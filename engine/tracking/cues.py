@@ -26,6 +26,11 @@ __all__ = ["RegionEdgeCues"]
 KIND = "region-edge-cues"
 
 
+def _as_bytes(probability: NDArray[np.float32]) -> NDArray[np.uint8]:
+    """p(object) as 0-255, in one pass: scale, round half to even, saturate."""
+    return np.asarray(cv2.convertScaleAbs(probability, alpha=255.0), np.uint8)
+
+
 class RegionEdgeCues:
     """Region and edge cue maps with an occlusion memory.
 
@@ -47,8 +52,7 @@ class RegionEdgeCues:
     def start(self, image: Frame, nodes: NDArray[np.float64], appearance: AppearanceModel) -> None:
         """Remember p(object) around the contour of the first frame."""
         _, (x0, y0, x1, y1) = roi_box(image.shape, nodes, self.search_radius)
-        prob = appearance.probability(image[y0:y1, x0:x1])
-        self._memory = (x0, y0), np.round(prob * 255.0).astype(np.uint8)
+        self._memory = (x0, y0), _as_bytes(appearance.probability(image[y0:y1, x0:x1]))
 
     def maps(
         self,
@@ -63,9 +67,7 @@ class RegionEdgeCues:
         if self.occlusion:
             silhouette = (prediction.matrix, prediction.rigid)
             maps, remembered = unoccluded(maps, self._memory, silhouette)
-        # one pass: scale, round half to even (as np.round) and saturate
-        scaled = np.asarray(cv2.convertScaleAbs(remembered.probability, alpha=255.0), np.uint8)
-        self._memory = remembered.origin, scaled
+        self._memory = remembered.origin, _as_bytes(remembered.probability)
         return maps
 
     def object_weight(self, points: NDArray[np.float64]) -> NDArray[np.float64]:

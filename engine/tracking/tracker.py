@@ -293,14 +293,16 @@ class Tracker:
             continues exactly as if uninterrupted; without them the next
             frame re-initialises.
         """
-        keep = include_frame and self._previous is not None
+        previous = self._previous if include_frame else None
         return {
             "version": STATE_VERSION,
             "nodes": self._nodes.tolist(),
             "options": dataclasses.asdict(self.options),
             "frame_index": self.frame_index,
-            "previous": pack_image(self._previous) if keep and self._previous is not None else None,
-            "stages": {name: getattr(self, name).to_state() for name in STAGES} if keep else None,
+            "previous": None if previous is None else pack_image(previous),
+            "stages": None
+            if previous is None
+            else {name: getattr(self, name).to_state() for name in STAGES},
         }
 
     @classmethod

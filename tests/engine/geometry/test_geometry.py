@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import (
     as_nodes,
+    bounding_box,
     circle_nodes,
     contour_to_mask,
     mask_iou,
@@ -305,3 +306,39 @@ def test_as_nodes_min_count() -> None:
     assert as_nodes([[0, 0], [1, 1]], min_count=2).shape == (2, 2)
     with pytest.raises(ValueError, match="N >= 5"):
         as_nodes(np.zeros((4, 2)), min_count=5)
+
+
+# --- bounding_box ------------------------------------------------------------------------------
+
+BOXED = np.array([[10.2, 20.7], [30.0, 20.7], [30.0, 40.5], [10.2, 40.5]])
+
+
+def test_bounding_box_grows_by_its_margins() -> None:
+    # floor(10.2) - 3, floor(20.7) - 3, ceil(30.0) + 4, ceil(40.5) + 4
+    assert bounding_box((100, 100), BOXED, 3, 4) == (7, 17, 34, 45)
+    assert bounding_box((100, 100), BOXED, 3) == (7, 17, 33, 44)  # after defaults to before
+
+
+def test_bounding_box_is_clipped_to_the_image() -> None:
+    assert bounding_box((30, 25), BOXED, 15) == (0, 5, 25, 30)
+    assert bounding_box((30, 25), BOXED, 15, keep_inside=False) == (0, 5, 25, 30)
+
+
+def test_bounding_box_outside_the_image() -> None:
+    far = BOXED + 500.0
+    # kept inside: one pixel at the image's last row and column
+    assert bounding_box((100, 80), far, 2) == (79, 99, 80, 100)
+    # a plain clip: empty
+    x0, y0, x1, y1 = bounding_box((100, 80), far, 2, keep_inside=False)
+    assert x1 <= x0
+    assert y1 <= y0
+
+
+def test_bounding_box_region_holds_every_node() -> None:
+    rng = np.random.default_rng(3)
+    nodes = rng.uniform(5.0, 90.0, (40, 2))
+    x0, y0, x1, y1 = bounding_box((100, 100), nodes, 0, 1)
+    assert (nodes[:, 0] >= x0).all()
+    assert (nodes[:, 1] >= y0).all()
+    assert (np.round(nodes[:, 0]) < x1).all()
+    assert (np.round(nodes[:, 1]) < y1).all()

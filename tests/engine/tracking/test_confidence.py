@@ -18,7 +18,7 @@ from engine.tracking.confidence import (
 from engine.tracking.maps import Maps
 from engine.tracking.tracker import Tracker
 from tests.engine.scenes import DiscScene
-from tests.engine.tracking.moving_disc import H, R, W, centre, initial, run
+from tests.engine.tracking.moving_disc import H, R, W, initial, run
 
 U8 = NDArray[np.uint8]
 
@@ -82,4 +82,3 @@ def test_a_followed_object_is_tracking_and_a_vanished_one_is_not(frames: list[U8
     empty = DiscScene(W, H, R, seed=11).frame((-10 * R, -10 * R))
     after = run(tracker, [empty] * 3)
     assert all(r.status != "tracking" for r in after), [r.confidence for r in after]
-    assert centre(0) != centre(7)

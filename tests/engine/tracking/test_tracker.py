@@ -332,6 +332,14 @@ def test_unknown_option_is_rejected() -> None:
         Tracker(initial(), warp_speed=9)
 
 
+def test_unknown_option_message_lists_the_valid_ones() -> None:
+    with pytest.raises(ValueError, match="warp_speed") as caught:
+        TrackerOptions.from_mapping({"warp_speed": 9, "search_radius": 8})
+    for field in dataclasses.fields(TrackerOptions):
+        assert field.name in str(caught.value)
+    assert TrackerOptions.from_mapping({"search_radius": 8}).search_radius == 8
+
+
 def test_open_contours_are_rejected() -> None:
     with pytest.raises(ValueError, match="closed"):
         Tracker(initial(), closed=False)
