@@ -47,12 +47,30 @@ class Clip:
         H x W x 3 BGR uint8 frames.
     masks : tuple of numpy.ndarray
         H x W uint8 ground truth, 0 = background, 255 = object.
+    visible : tuple of bool
+        Whether the object can be seen in each frame (False: entirely hidden, as in the
+        synthetic ``"hidden"``; the mask then is where it is).  Left out or empty when
+        constructing: every frame, so it is always one flag per frame once constructed.
+
+    Raises
+    ------
+    ValueError
+        If ``visible`` is given with another length than ``frames``.
     """
 
     name: str
     source: str
     frames: tuple[Frame, ...]
     masks: tuple[Mask, ...]
+    visible: tuple[bool, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.visible:
+            object.__setattr__(self, "visible", (True,) * len(self.frames))
+        elif len(self.visible) != len(self.frames):
+            raise ValueError(
+                f"{self.name}: {len(self.visible)} visibility flags for {len(self.frames)} frames"
+            )
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -110,13 +128,15 @@ def synthetic_conditions() -> tuple[str, ...]:
 
 
 def load_synthetic(condition: str, length: int) -> Clip:
-    """One synthetic sequence (seed 0, 480 x 640) as a :class:`Clip`."""
+    """One synthetic sequence (seed 0, 480 x 640) as a :class:`Clip`, with the frames where
+    the object is hidden (its ``visible`` flags; all visible if the module has none)."""
     sequence = synthetic_module().make_sequence(condition, seed=0, length=length, size=(480, 640))
     frames = tuple(as_frame(f) for f in sequence.frames)
     masks = tuple(np.asarray(m, dtype=np.uint8) for m in sequence.masks)
     if len(frames) != len(masks) or not frames:
         raise ValueError(f"synthetic {condition}: {len(frames)} frames but {len(masks)} masks")
-    return Clip(condition, "synthetic", frames, masks)
+    visible = tuple(bool(v) for v in getattr(sequence, "visible", ()))
+    return Clip(condition, "synthetic", frames, masks, visible)
 
 
 def as_frame(frame: Any) -> Frame:

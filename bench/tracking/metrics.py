@@ -4,7 +4,13 @@ and confidence tell a good track from a lost one.
 - Scored frames: 1..T-2 of a T-frame sequence (the first frame's mask is given, the last is
   left out, as in the official DAVIS evaluation); a tracker limited to its first F < T - 1
   frames is scored on 1..F-1.
-- J of a sequence: mean IoU over its scored frames; J of a set: mean of the per-sequence means.
+- Hidden objects (a clip's ``visible`` flags; the synthetic ``"hidden"``): a scored frame where
+  the object cannot be seen is scored by the tracker's status only, correct iff ``uncertain``
+  or ``lost`` (the share of them: "hidden frames flagged"); it and the first
+  :data:`REACQUIRE_FRAMES` frames after the object reappears are not scored by IoU.  Clips
+  where the object is always visible are scored on all their scored frames.
+- J of a sequence: mean IoU over its frames scored by IoU; J of a set: mean of the
+  per-sequence means.
 - Decay of a sequence: mean J over the first quarter of its scored frames minus that over the
   last quarter (``max(1, n // 4)`` frames of ``n``); positive = the track degrades.  The decay
   of a set is the mean over its sequences.
@@ -26,11 +32,35 @@ LOW_IOU = 0.2
 """Below this IoU a frame is lost: it should be reported ``uncertain`` or ``lost``."""
 HIGH_IOU = 0.6
 """From this IoU a frame is well tracked: it should be reported ``tracking``."""
+REACQUIRE_FRAMES = 3
+"""Frames from the one where a hidden object reappears (included) not scored by IoU: the
+tracker's time to find it again; IoU counts from the third frame after it reappears."""
+FLAGGED = frozenset({"uncertain", "lost"})
+"""The statuses that say the object is not (surely) tracked: right for a hidden object."""
 
 
 def scored_indices(tracked: int, total: int) -> range:
     """Frames scored of a ``total``-frame clip when the tracker tracked its first ``tracked``."""
     return range(1, min(tracked, total - 1))
+
+
+def iou_indices(scored: range, visible: Sequence[bool]) -> list[int]:
+    """The scored frames scored by IoU: those where the object is visible, except the first
+    :data:`REACQUIRE_FRAMES` after each hidden stretch (``visible`` empty: all visible)."""
+    if not visible:
+        return list(scored)
+    since = REACQUIRE_FRAMES  # frames since the object was last hidden
+    keep: set[int] = set()
+    for i, seen in enumerate(visible):
+        since = since + 1 if seen else 0
+        if seen and since > REACQUIRE_FRAMES:
+            keep.add(i)
+    return [i for i in scored if i in keep]
+
+
+def hidden_indices(scored: range, visible: Sequence[bool]) -> list[int]:
+    """The scored frames where the object cannot be seen (scored by status)."""
+    return [i for i in scored if i < len(visible) and not visible[i]]
 
 
 def mean(values: Iterable[float]) -> float:

@@ -20,7 +20,7 @@ from bench.common.report import (
 )
 from bench.tracking.config import NODES, Config
 from bench.tracking.goals import accuracy_goals, speed_goals
-from bench.tracking.metrics import SetScore
+from bench.tracking.metrics import REACQUIRE_FRAMES, SetScore
 from bench.tracking.run import ClipResult, mean_j
 from bench.tracking.sets import TITLES
 from bench.tracking.tables import SCORE_HEADERS, score_cells, sequence_table, timing_table
@@ -202,6 +202,10 @@ def protocol_notes() -> list[str]:
         "is the mean of the per-clip means. Decay: J of the first quarter of the scored frames "
         "(max(1, n // 4) of n) minus that of the last quarter. A tracker that raises scores 0 "
         "on the frames it did not track.",
+        "- Hidden object (synthetic `hidden`): the frames where it is entirely hidden are "
+        "scored by status only, correct iff efdm reports `uncertain` or `lost` (goal: all of "
+        f"them); IoU (J) counts from frame r + {REACQUIRE_FRAMES} on, r the frame where it "
+        "reappears, and the lost detection below leaves out the frames not scored by IoU.",
         "- Lost detection: of the scored frames of a set, pooled, the share with IoU < 0.2 "
         "that efdm reported `uncertain` or `lost`, the share with IoU >= 0.6 it reported "
         "`tracking`, and the mean |confidence - IoU|. The confidence model "
@@ -289,6 +293,8 @@ def clip_json(clip: ClipResult) -> dict[str, Any]:
             "extras": run.extras,
             "status": run.status,
             "error": run.error,
+            "hidden_frames": run.hidden,
+            "hidden_flagged": finite(run.hidden_flagged),
         }
         for name, run in clip.runs.items()
     }

@@ -4,9 +4,11 @@ Protocol (DAVIS-2016, semi-supervised): the first frame's mask gives the
 initial contour (its largest outer contour resampled to :data:`NODES`
 nodes); the tracker then sees only frames.  J of a frame is the IoU of the
 filled tracked contour with the ground-truth mask; a clip's score is the mean
-over frames 1..T-2 (:mod:`bench.tracking.metrics`).  Only the ``step`` calls
-are timed; each tracker tracks a whole clip uninterrupted, the trackers one
-after the other in an order that alternates from clip to clip.
+over frames 1..T-2, less the frames where the object is hidden (scored by the
+tracker's status instead) and the first few after it reappears
+(:mod:`bench.tracking.metrics`).  Only the ``step`` calls are timed; each
+tracker tracks a whole clip uninterrupted, the trackers one after the other in
+an order that alternates from clip to clip.
 """
 
 from __future__ import annotations
@@ -20,7 +22,16 @@ from dataclasses import dataclass, field
 from bench.common.data import Clip
 from bench.common.log import log
 from bench.tracking.config import NODES
-from bench.tracking.metrics import StatusScore, decay, mean, scored_indices
+from bench.tracking.metrics import (
+    FLAGGED,
+    StatusScore,
+    decay,
+    hidden_indices,
+    iou_indices,
+    mean,
+    scored_indices,
+    share,
+)
 from bench.tracking.trackers import ContourTracker, Factory, Nodes
 from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
 
@@ -49,6 +60,8 @@ class TrackRun:
         The tracker's own verdict on every tracked frame (efdm; empty for the others).
     error : str or None
         What went wrong, if the tracker raised; the untracked frames then count J = 0.
+    visible : tuple of bool
+        Whether the object can be seen in each frame of the clip (empty: in every frame).
     """
 
     tracker: str
@@ -60,31 +73,51 @@ class TrackRun:
     extras: dict[str, list[float]] = field(default_factory=dict)
     status: list[str] = field(default_factory=list)
     error: str | None = None
+    visible: tuple[bool, ...] = ()
 
     @property
     def scored(self) -> range:
-        """The scored frames: 1..T-2 (1..frames-1 when limited to fewer frames)."""
+        """The scored frames: 1..T-2 (1..frames-1 when limited to fewer frames), by IoU
+        (:attr:`iou_scored`) or, where the object is hidden, by status (:attr:`hidden`)."""
         return scored_indices(self.frames, self.total)
 
     @property
+    def iou_scored(self) -> list[int]:
+        """The scored frames scored by IoU: all of them unless the object hides."""
+        return iou_indices(self.scored, self.visible)
+
+    @property
+    def hidden(self) -> list[int]:
+        """The scored frames where the object is hidden (scored by status)."""
+        return hidden_indices(self.scored, self.visible)
+
+    @property
     def scores(self) -> list[float]:
-        """J of the scored frames; frames never tracked because of an error count 0."""
-        return [self.iou[i] if i < len(self.iou) else 0.0 for i in self.scored]
+        """J of the frames scored by IoU; frames never tracked because of an error count 0."""
+        return [self.iou[i] if i < len(self.iou) else 0.0 for i in self.iou_scored]
 
     @property
     def mean_j(self) -> float:
-        """Mean J over the scored frames (nan when there are none)."""
+        """Mean J over the frames scored by IoU (nan when there are none)."""
         return mean(self.scores)
 
     @property
     def decay(self) -> float:
-        """J of the first quarter of the scored frames minus that of the last quarter."""
+        """J of the first quarter of the frames scored by IoU minus that of the last quarter."""
         return decay(self.scores)
 
     @property
+    def hidden_flagged(self) -> float:
+        """Share of the hidden frames reported ``uncertain`` or ``lost`` (NaN: none hidden;
+        frames untracked because of an error, or without a status, count as not flagged)."""
+        flagged = [i < len(self.status) and self.status[i] in FLAGGED for i in self.hidden]
+        return share(sum(flagged), len(flagged))
+
+    @property
     def status_score(self) -> StatusScore:
-        """The tracker's status and confidence against J, over the scored frames it tracked."""
-        tracked = self.scored[: len(self.iou)]
+        """The tracker's status and confidence against J, over the frames scored by IoU that
+        it tracked."""
+        tracked = [i for i in self.iou_scored if i < len(self.iou)]
         confidence = self.extras.get("confidence", [])
         return StatusScore.of_frames(
             [self.iou[i] for i in tracked],
@@ -159,7 +192,10 @@ def run_clip(
     run on this clip.  ``label`` ends the progress lines (e.g. the options).
     """
     total = len(clip.frames)
-    runs = {name: TrackRun(name, min(limits.get(name, total), total), total) for name in factories}
+    runs = {
+        name: TrackRun(name, min(limits.get(name, total), total), total, visible=clip.visible)
+        for name in factories
+    }
     names = list(factories)[::-1] if reverse else list(factories)
     for name in names:
         run = runs[name]

@@ -59,7 +59,7 @@ class ClipSpec:
         """The clip's frames and masks (its ``source`` is the set)."""
         if self.set == "synthetic":
             clip = load_synthetic(self.name, self.frames or 0)
-            return Clip(clip.name, self.set, clip.frames, clip.masks)
+            return Clip(clip.name, self.set, clip.frames, clip.masks, clip.visible)
         return load_davis(self.name, self.frames, DAVIS_ROOTS[self.set], source=self.set)
 
 

@@ -3,7 +3,31 @@
 A smooth deformable blob (a circle whose radius is modulated by 2-4 low
 harmonics with slowly varying amplitudes and phases) moves along a smooth
 trajectory (translation plus mild rotation) over a background.  Each of
-:data:`CONDITIONS` adds one difficulty on top of ``"plain"``.
+:data:`CONDITIONS` adds one difficulty on top of ``"plain"``:
+
+- ``"noise"``, ``"strong_noise"``: sensor noise of sigma 10 and 25 grey levels (2 otherwise);
+- ``"clutter"``: distractor blobs and bars, two of them on the object's path;
+- ``"fast_motion"``, ``"motion_blur"``: 17-20 px/frame; 8-12 px/frame and blurred along it;
+- ``"low_contrast"``: object and background a few grey levels apart;
+- ``"shape_change"``, ``"scale_change"``: strong, fast harmonics; radius x 2 (or / 2);
+- ``"occluder"``: a green bar passes over the object;
+- ``"textured"``: stripes or checks on the object;
+- ``"matched_background"``: the left half of the background has the object's grey;
+- ``"no_contrast_stretch"``: an object-coloured band (25-40 px deep, the object's own shading)
+  lies against a contiguous arc of 28-33 % of the outline, fixed on the object and moving with
+  it: along that arc there is no edge and no colour step (the band is not in the mask);
+- ``"hidden"``: a large occluder of background-like colours covers the whole object for 5-8
+  consecutive frames in the middle of the sequence (fewer in short ones, see
+  :func:`engine.testing._shapes.hidden_span`) while it moves on at 3-6 px/frame: it
+  reappears where its motion took it;
+- ``"thin_parts"``: 2-4 straight limbs 4-8 px wide stick out 30-60 px from a smaller body
+  (radius 40-55 px) and swing by 4-12 degrees;
+- ``"articulated"``: a figure instead of the blob, a trunk with two legs and up to two arms
+  of two segments each, whose hips and shoulders swing by 60-120 degrees, knees and elbows
+  by 20-70, while the trunk tilts by 45-90 (full swing by frame 35);
+- ``"fast_40"``: 38-44 px/frame (about 40 on average: a bounce off the frame's edges shortens
+  that frame's step), turning smoothly;
+- ``"small"``: 20-40 px across in every frame (radius 12.5-17 px), 2-6 px/frame.
 
 Conventions: points are ``[x, y]`` pixels (x = column, y = row, a pixel's
 centre has integer coordinates), frames are H x W x 3 BGR ``uint8`` as OpenCV
@@ -11,19 +35,26 @@ gives them, masks are H x W ``uint8`` with 0 = background and 255 = object.
 The mask is the object's whole silhouette at that frame: it is *amodal*, so
 the occluder of ``"occluder"`` does not cut it (a tracker is expected to keep
 the shape through the occlusion), and it is not blurred in ``"motion_blur"``.
+``SyntheticSequence.visible`` says per frame whether any of the object can be
+seen: False only in the frames ``"hidden"`` covers it entirely, whose masks
+still show where it is.
 Masks are filled with :func:`engine.geometry.contour_to_mask` (pixel centres
 inside the outline); frames are anti-aliased by 4 x 4 supersampled coverage.
 
 The object always stays at least 10 pixels inside the frame.  Speeds are in
 pixels per frame and do not depend on the frame size; the object's radius
-(about 50-70 pixels) shrinks only for frames smaller than 480 pixels.
+(about 50-70 pixels) and the other sizes above shrink only for frames smaller
+than 480 pixels, except ``"small"``'s object and the width of ``"thin_parts"``'
+limbs, which never do.
 Generation is deterministic for a given ``seed`` and condition.  Motion and
 shape change are set per frame, so a shorter sequence is a prefix of a longer
 one with the same seed, except where the timing is spread over the whole
 sequence: the growth or shrinkage of ``"scale_change"`` (a factor 2 in radius
 from first to last frame), the pass of the ``"occluder"`` bar (clear of the
-object in the first and last frames) and where ``"clutter"`` places the
-distractors it puts on the object's path.
+object in the first and last frames), where ``"clutter"`` places the
+distractors it puts on the object's path, and when ``"hidden"`` hides the
+object (its gap is centred).  New conditions are appended to
+:data:`CONDITIONS`: a condition's random stream is seeded with its index.
 """
 
 from __future__ import annotations
@@ -37,6 +68,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask
+from engine.testing import _shapes
 
 __all__ = ["CONDITIONS", "SyntheticSequence", "make_sequence"]
 
@@ -53,6 +85,13 @@ CONDITIONS: tuple[str, ...] = (
     "occluder",
     "textured",
     "matched_background",
+    # appended, never inserted: a condition's random stream is seeded with its index
+    "no_contrast_stretch",
+    "hidden",
+    "thin_parts",
+    "articulated",
+    "fast_40",
+    "small",
 )
 
 MIN_SIZE = 96
@@ -62,6 +101,20 @@ _MARGIN = 12.0  # pixels between the outline's extreme points and the frame edge
 _VERTICES = 360
 _SS = 4  # supersampling factor for anti-aliased coverage
 _OCCLUDER_BGR = (40.0, 165.0, 40.0)  # saturated green bar of "occluder"
+_ARC_FRACTION = (0.28, 0.33)
+"""Share of the outline's length along which ``"no_contrast_stretch"``'s object meets its own
+colour: a quarter to a third, kept above 0.25 by the band's tapered ends (5 % of the arc each)."""
+_BAND_DEPTH = (25.0, 40.0)
+"""Depth of that object-coloured band, px (scaled with the frame): beyond the reach of a
+local edge or region cue, so the true outline there can only be inferred from the rest."""
+_HIDDEN_FRAMES = (5, 8)
+"""Least and most frames ``"hidden"``'s object is out of sight (fewer in short sequences)."""
+_HIDER_CLEARANCE = 12.0
+"""Pixels between the hidden object's outline and the edge of the occluder over it: more than
+the anti-aliasing (1 px), so no trace of the object shows."""
+_HIDER_SHADE = 12.0
+"""Most difference per channel between the occluder's base colour and the background's:
+background-like, with a faint edge."""
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -80,11 +133,27 @@ class SyntheticSequence:
         H x W x 3 BGR ``uint8`` images (read-only).
     masks : tuple of numpy.ndarray
         H x W ``uint8``, 0 background / 255 object, the amodal silhouette (read-only).
+    visible : tuple of bool
+        Whether any of the object can be seen in each frame: False only while ``"hidden"``
+        hides it entirely.  Optional when constructing: left out (or empty), every frame is
+        visible, so it is always one flag per frame once constructed.
+
+    Raises
+    ------
+    ValueError
+        If ``visible`` is given with another length than ``frames``.
     """
 
     condition: str
     frames: tuple[U8, ...]
     masks: tuple[U8, ...]
+    visible: tuple[bool, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.visible:
+            object.__setattr__(self, "visible", (True,) * len(self.frames))
+        elif len(self.visible) != len(self.frames):
+            raise ValueError(f"visible has {len(self.visible)} flags for {len(self.frames)} frames")
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -97,6 +166,8 @@ class _Knobs:
     shape: tuple[float, float] = (0.06, 0.12)  # total harmonic amplitude / radius
     period: tuple[float, float] = (40.0, 90.0)  # frames per cycle of the shape change
     scale: float = 1.0  # radius factor from the first to the last frame (or its inverse)
+    radius: tuple[float, float] = (50.0, 70.0)  # blob radius R0, px at 480 px and more
+    shrinks: bool = True  # R0 scaled down for frames smaller than 480 px
 
 
 _KNOBS: dict[str, _Knobs] = {
@@ -107,6 +178,11 @@ _KNOBS: dict[str, _Knobs] = {
     "low_contrast": _Knobs(noise=3.0),
     "shape_change": _Knobs(shape=(0.25, 0.32), period=(15.0, 30.0)),
     "scale_change": _Knobs(scale=2.0),
+    "hidden": _Knobs(speed=(3.0, 6.0)),  # a clear way from where it vanished
+    "thin_parts": _Knobs(radius=(40.0, 55.0)),  # the body; the limbs reach further
+    "fast_40": _Knobs(speed=(38.0, 44.0)),  # bounces shorten the steps: about 40 on average
+    # 20-40 px across in every frame: R0 (1 +- 3 %)(1 +- shape) stays within 10-20 px
+    "small": _Knobs(speed=(2.0, 6.0), shape=(0.04, 0.10), radius=(12.5, 17.0), shrinks=False),
 }
 
 
@@ -122,13 +198,17 @@ def make_sequence(
     seed : int
         Non-negative seed; equal seeds give identical sequences.
     length : int
-        Number of frames (>= 2).
+        Number of frames (>= 2; ``"hidden"`` keeps at least 3 hidden frames with 2 visible
+        before and 5 after from 10 frames on).
     size : tuple of int
         ``(height, width)`` in pixels, each >= :data:`MIN_SIZE`.
 
     Returns
     -------
     SyntheticSequence
+        ``length`` frames, their amodal masks and whether the object can be seen in each
+        (``visible``: False only in the gap of ``"hidden"``); the conditions are described
+        in :mod:`engine.testing.synthetic`.
 
     Raises
     ------
@@ -160,16 +240,20 @@ def _gauss_table() -> F32:
     return np.array([nd.inv_cdf((i + 0.5) / 65536) for i in range(65536)], np.float32)
 
 
-def _coverage(poly: F64, H: int, W: int) -> tuple[int, int, F32] | None:
-    """Anti-aliased area coverage of a polygon: ``(y0, x0, alpha)`` over its clipped bbox."""
+def _coverage(polys: F64 | list[F64], H: int, W: int) -> tuple[int, int, F32] | None:
+    """Anti-aliased area coverage of a polygon, or of the union of several:
+    ``(y0, x0, alpha)`` over the clipped bbox."""
+    parts = [polys] if isinstance(polys, np.ndarray) else polys
+    poly = np.vstack(parts)
     x0, y0 = (max(int(np.floor(v)) - 1, 0) for v in poly.min(axis=0))
     x1, y1 = min(int(np.ceil(poly[:, 0].max())) + 2, W), min(int(np.ceil(poly[:, 1].max())) + 2, H)
     if x1 <= x0 or y1 <= y0:
         return None
-    hi = (poly - (x0, y0) + 0.5) * _SS - 0.5  # supersampled pixel centres
-    pts = np.round(np.clip(hi, -1e5, 1e5) * 16).astype(np.int32).reshape(-1, 1, 2)
     canvas = np.zeros(((y1 - y0) * _SS, (x1 - x0) * _SS), np.uint8)
-    cv2.fillPoly(canvas, [pts], 255, lineType=cv2.LINE_8, shift=4)
+    for part in parts:  # one by one: fillPoly fills overlaps of a list even-odd
+        hi = (part - (x0, y0) + 0.5) * _SS - 0.5  # supersampled pixel centres
+        pts = np.round(np.clip(hi, -1e5, 1e5) * 16).astype(np.int32).reshape(-1, 1, 2)
+        cv2.fillPoly(canvas, [pts], 255, lineType=cv2.LINE_8, shift=4)
     alpha = cv2.resize(canvas, (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA)
     return y0, x0, alpha.astype(np.float32) / np.float32(255.0)
 
@@ -181,6 +265,24 @@ def _paint(img: F32, poly: F64, colour: tuple[float, float, float] | F64) -> Non
         y0, x0, a = cov
         roi = img[y0 : y0 + a.shape[0], x0 : x0 + a.shape[1]]
         roi += a[..., None] * (np.asarray(colour, np.float32) - roi)
+
+
+def _paint_image(img: F32, poly: F64, source: F32) -> None:
+    """Composite the pixels of ``source`` (same size as ``img``) inside a polygon, anti-aliased."""
+    cov = _coverage(poly, img.shape[0], img.shape[1])
+    if cov is not None:
+        y0, x0, a = cov
+        h, w = a.shape
+        roi = img[y0 : y0 + h, x0 : x0 + w]
+        roi += a[..., None] * (source[y0 : y0 + h, x0 : x0 + w] - roi)
+
+
+def _fill(polys: list[F64], H: int, W: int) -> U8:
+    """The mask of the union of polygons (each by :func:`engine.geometry.contour_to_mask`)."""
+    mask = contour_to_mask(polys[0], (H, W))
+    for poly in polys[1:]:
+        mask |= contour_to_mask(poly, (H, W))
+    return mask
 
 
 def _blob(rng: np.random.Generator, center: F64, radius: float) -> F64:
@@ -213,7 +315,7 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
     t = np.arange(T, dtype=np.float64)
 
     # shape: radius R(t) (1 + sum_k a_k(t) cos(k theta + phi_k(t))), rotation rot(t)
-    R0 = rng.uniform(50, 70) * s
+    R0 = rng.uniform(*knobs.radius) * (s if knobs.shrinks else 1.0)
     ks = rng.choice([2, 3, 4, 5], size=int(rng.integers(2, 5)), replace=False)
     amax = rng.dirichlet(np.ones(len(ks))) * rng.uniform(*knobs.shape)
     omega = 2 * np.pi / rng.uniform(*knobs.period, size=len(ks))
@@ -232,6 +334,16 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
         1 + np.einsum("kt,ktv->tv", amp, np.cos(ks[:, None, None] * theta + phase[..., None]))
     )
     env = R0 * max(1.03, np.sqrt(knobs.scale)) * (1 + float(amax.sum()))  # >= every r; not T
+    extra: _shapes.Parts | None = None  # object-coordinate polygons beyond (or for) the blob
+    if cond == "thin_parts":
+        extra, env = _shapes.thin_limbs(rng, r, theta, s, env)
+    elif cond == "articulated":  # the figure replaces the blob
+        extra, env = _shapes.articulated_figure(rng, T, s)
+    elif cond == "no_contrast_stretch":
+        arc_start = int(rng.integers(_VERTICES))
+        arc_fraction = rng.uniform(*_ARC_FRACTION)
+        band_depth = rng.uniform(*_BAND_DEPTH) * s
+        env += band_depth
 
     # trajectory: smooth heading and speed, reflected at the walls (keeps the speed)
     blur_pad = 7.0 if cond == "motion_blur" else 0.0
@@ -254,12 +366,26 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
     polys = center[:, None, :] + r[..., None] * np.stack(
         [np.cos(theta + rot[:, None]), np.sin(theta + rot[:, None])], axis=-1
     )
+    # per frame: the polygons whose union is the object (its mask), and those painted
+    # in the object's colours (the object, and the band of "no_contrast_stretch")
+    if extra is None:
+        body = [[polys[i]] for i in range(T)]
+    else:
+        placed = [_shapes.place(extra[i], center[i], rot[i]) for i in range(T)]
+        body = placed if cond == "articulated" else [[polys[i], *placed[i]] for i in range(T)]
+    painted = body
+    if cond == "no_contrast_stretch":
+        painted = [
+            [*body[i], _shapes.band(polys[i], center[i], arc_start, arc_fraction, band_depth)]
+            for i in range(T)
+        ]
 
     # appearance
     obj_bgr = np.array([55.0, 60.0, 150.0]) + rng.uniform(-8, 8, 3)
     shade_amp = 8.0
     bg_base = np.array([175.0, 180.0, 165.0]) + rng.uniform(-10, 10, 3)
     bg = _background(rng, H, W, bg_base, 20.0)
+    hidden = range(0)  # the frames the object is out of sight
     if cond == "low_contrast":
         bg_base = np.array([125.0, 130.0, 138.0]) + rng.uniform(-10, 10, 3)
         bg = _background(rng, H, W, bg_base, 3.0)
@@ -269,6 +395,14 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
         matched = _background(rng, H, W, obj_bgr + np.array([8.0, 0.0, -3.0]), 3.0)
         w = np.clip((W / 2 - np.arange(W, dtype=np.float32)) / 8 + 0.5, 0, 1)[None, :, None]
         bg += w * (matched - bg)
+    elif cond == "hidden":  # a large background-like occluder over the object's way
+        gap = int(rng.integers(*_HIDDEN_FRAMES, endpoint=True))
+        hidden = range(*_shapes.hidden_span(T, gap))
+        way = center[hidden.start : hidden.stop]
+        mid = way.mean(axis=0)
+        reach = float(np.hypot(*(way - mid).T).max()) + env + _HIDER_CLEARANCE
+        hider = _blob(rng, mid, reach / 0.7)  # _blob's radius varies by at most 30 %
+        hider_bg = _background(rng, H, W, bg_base + rng.uniform(-1, 1, 3) * _HIDER_SHADE, 20.0)
     elif cond == "clutter":
         for i in range(int(rng.integers(6, 10))):
             size = rng.uniform(15, 45) * s
@@ -302,7 +436,7 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
     for i in range(T):
         img = bg.copy()
         pad = int(blur_pad) + 2 if blur else 0
-        cov = _coverage(polys[i], H, W)
+        cov = _coverage(painted[i], H, W)
         assert cov is not None  # the object is always inside the frame
         y0, x0, a = cov
         if pad:
@@ -358,12 +492,15 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
                 + np.outer([-1, -1, 1, 1], nrm * half_w)
             )
             _paint(img, bar, _OCCLUDER_BGR)
+        if i in hidden:
+            _paint_image(img, hider, hider_bg)
         img += noise_lut[rng.integers(0, 65536, (H, W, 3), dtype=np.uint16)]
         np.clip(img, 0, 255, out=img)
         frame = np.rint(img).astype(np.uint8)
-        mask = contour_to_mask(polys[i], (H, W))
+        mask = _fill(body[i], H, W)
         frame.flags.writeable = False
         mask.flags.writeable = False
         frames.append(frame)
         masks.append(mask)
-    return SyntheticSequence(cond, tuple(frames), tuple(masks))
+    visible = tuple(i not in hidden for i in range(T))
+    return SyntheticSequence(cond, tuple(frames), tuple(masks), visible)

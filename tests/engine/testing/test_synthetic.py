@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from functools import cache
 
 import cv2
@@ -66,7 +67,11 @@ def test_deterministic_per_seed(condition: str) -> None:
     assert not np.array_equal(a.masks[0], c.masks[0])
 
 
-@pytest.mark.parametrize("condition", ["plain", "motion_blur", "matched_background"])
+PREFIX_CONDITIONS = ["plain", "motion_blur", "matched_background", "no_contrast_stretch"]
+PREFIX_CONDITIONS += ["thin_parts", "articulated", "fast_40", "small"]
+
+
+@pytest.mark.parametrize("condition", PREFIX_CONDITIONS)
 def test_shorter_sequence_is_a_prefix(condition: str) -> None:
     short = make_sequence(condition, seed=5, length=3, size=SMALL)
     for a, b in zip(short.frames, small(condition, 5).frames[:3], strict=True):
@@ -228,3 +233,252 @@ def test_bad_arguments_raise_value_error(
 ) -> None:
     with pytest.raises(ValueError, match=match):
         make_sequence(condition, **kwargs)  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------ the conditions added later
+
+EXISTING = {
+    "plain": "bf36505dadfb75a7add7a354d43d33a2286d1ca0c6b9ef6425f6ed0eaeee980d",
+    "noise": "5c0937fb84cad96f9399c41ac37fc0f58f1ed20414a3c0c443720fce4462653d",
+    "strong_noise": "e6d9ac5a8a4c47fd14943d04353ba959c5b359c0e2076e23949d07f3555d3abc",
+    "clutter": "d5b78acf2dc4adf9178827897c9a30efb27ccf6806dfa9aaba5e4ef77cd9d6e7",
+    "fast_motion": "6b4bcec48348a5f443a7ead932b5180c6312e82654236769065fd2760d7f37af",
+    "motion_blur": "e86e796cc96879e676bf72d32dfecb5b409d52e4574b9e4330b5fe69b8cfb49c",
+    "low_contrast": "fc256ee62bf321d9b8f3d28c187b3d9c4ba9275b941d4e45e1a8409027870173",
+    "shape_change": "38138a26f07cbb28c0babc7b04d8a8df0e347d8435715f47728ad2eff356361c",
+    "scale_change": "f958ed6f3ccca82f0fe672642808d16af6cc5209a1a5de32a678ab6a2c7f9ee8",
+    "occluder": "16d9bcdfc03018ca295c8c2ee355f27312d11d56f56db810b4c8f741b40d060c",
+    "textured": "0dd40fe6edb1ef0911515a6b05fb908906873d48e1d0c2489c575c249c82f180",
+    "matched_background": "af5a10df5db27758d1af488bd21fdc96f94219502eee07695c2b75b649e48916",
+}
+"""SHA-256 of the frames and masks of seeds 0 and 1 (144 x 192, 6 frames) and seed 2
+(480 x 640, 3 frames) of the first twelve conditions, as generated before the later ones were
+added (bit-exact: a numpy or OpenCV upgrade that changes the rendering changes them too)."""
+NEW = ("no_contrast_stretch", "hidden", "thin_parts", "articulated", "fast_40", "small")
+DISK_11 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))
+
+
+def test_new_conditions_are_appended() -> None:
+    assert CONDITIONS[: len(EXISTING)] == tuple(EXISTING)
+    assert CONDITIONS[len(EXISTING) :] == NEW
+
+
+@pytest.mark.parametrize("condition", list(EXISTING))
+def test_existing_conditions_render_as_before(condition: str) -> None:
+    h = hashlib.sha256()
+    for seq in (
+        small(condition),
+        small(condition, 1),
+        make_sequence(condition, seed=2, length=3, size=(480, 640)),
+    ):
+        for frame, mask in zip(seq.frames, seq.masks, strict=True):
+            h.update(frame.tobytes())
+            h.update(mask.tobytes())
+    assert h.hexdigest() == EXISTING[condition]
+
+
+@cache
+def full(condition: str, seed: int = 0, length: int = 40) -> SyntheticSequence:
+    return make_sequence(condition, seed=seed, length=length)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_small_is_20_to_40_px_across_and_moves_moderately(seed: int) -> None:
+    seq = full("small", seed, 20)
+    for mask in seq.masks:
+        ys, xs = np.nonzero(mask)
+        assert 20 <= xs.max() - xs.min() + 1 <= 40
+        assert 20 <= ys.max() - ys.min() + 1 <= 40
+    assert 2.0 <= steps(seq).mean() <= 6.0
+
+
+def test_small_keeps_its_size_in_small_frames() -> None:
+    _, xs = np.nonzero(small("small").masks[0])
+    assert xs.max() - xs.min() + 1 >= 20
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fast_40_moves_about_40_px_per_frame(seed: int) -> None:
+    d = steps(full("fast_40", seed, 16))
+    assert 36.0 <= d.mean() <= 44.0
+    assert d.max() <= 44.5
+
+
+def ring_means(
+    frame: NDArray[np.uint8], mask: NDArray[np.uint8]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Mean BGR of a band 2-6 px inside the outline and of one 2-6 px outside it."""
+    f = frame.astype(np.float64)
+    near = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+    far = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (13, 13))
+    inner = (cv2.erode(mask, near) > 0) & ~(cv2.erode(mask, far) > 0)
+    outer = (cv2.dilate(mask, far) > 0) & ~(cv2.dilate(mask, near) > 0)
+    return f[inner].mean(axis=0), f[outer].mean(axis=0)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hidden_object_is_out_of_sight_for_several_frames_and_moves_on(seed: int) -> None:
+    seq = full("hidden", seed)
+    gone = [i for i, v in enumerate(seq.visible) if not v]
+    assert 5 <= len(gone) <= 8
+    assert gone == list(range(gone[0], gone[-1] + 1))  # one gap
+    assert gone[0] >= 10  # in the middle
+    assert gone[-1] <= 29
+    obj = seq.frames[0][cv2.erode(seq.masks[0], KERNEL) > 0].astype(np.float64).mean(axis=0)
+    for i, (frame, mask) in enumerate(zip(seq.frames, seq.masks, strict=True)):
+        assert np.count_nonzero(mask) > 0.8 * np.count_nonzero(seq.masks[0])  # still amodal
+        inside, outside = ring_means(frame, mask)
+        seen = frame[cv2.erode(mask, KERNEL) > 0].astype(np.float64).mean(axis=0)
+        if i in gone:  # no edge along the outline, nothing of the object's colour
+            assert np.abs(inside - outside).max() < 8.0
+            assert np.linalg.norm(seen - obj) > 80.0
+        else:
+            assert np.linalg.norm(inside - outside) > 80.0
+            assert np.linalg.norm(seen - obj) < 30.0
+    # it keeps moving while hidden (3-6 px/frame) and reappears where that took it, not
+    # where it vanished (unless it bounced off the frame's edge meanwhile)
+    way = steps(seq)[gone[0] - 1 : gone[-1] + 1]
+    assert way.min() >= 2.0
+    assert way.sum() >= 2.5 * len(way)
+    before, after = centroid(seq.masks[gone[0] - 1]), centroid(seq.masks[gone[-1] + 1])
+    assert np.hypot(*(after - before)) > 5.0
+
+
+@pytest.mark.parametrize("length", [2, 6, 10, 12, 20])
+def test_hidden_gap_in_short_sequences(length: int) -> None:
+    seq = make_sequence("hidden", seed=0, length=length, size=SMALL)
+    gone = [i for i, v in enumerate(seq.visible) if not v]
+    assert seq.visible[0]
+    assert gone
+    assert gone == list(range(gone[0], gone[-1] + 1))
+    if length >= 10:
+        assert len(gone) >= 3
+        assert gone[0] >= 2
+        assert length - 1 - gone[-1] >= 5
+
+
+@pytest.mark.parametrize("condition", [c for c in CONDITIONS if c != "hidden"])
+def test_other_conditions_are_visible_throughout(condition: str) -> None:
+    seq = small(condition)
+    assert seq.visible == (True,) * len(seq)
+
+
+def test_visible_defaults_to_every_frame_and_must_match_the_frames() -> None:
+    seq = small("plain")
+    assert SyntheticSequence("plain", seq.frames, seq.masks).visible == (True,) * len(seq)
+    with pytest.raises(ValueError, match="visible"):
+        SyntheticSequence("plain", seq.frames, seq.masks, (True, False))
+
+
+def thin_parts(mask: NDArray[np.uint8]) -> tuple[float, list[NDArray[np.bool_]]]:
+    """Share of the mask thinner than an 11 px disc, and those parts at least 25 px long."""
+    thin = (mask > 0) & (cv2.morphologyEx(mask, cv2.MORPH_OPEN, DISK_11) == 0)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(thin.astype(np.uint8))
+    long = [
+        labels == k
+        for k in range(1, n)
+        if max(stats[k, cv2.CC_STAT_WIDTH], stats[k, cv2.CC_STAT_HEIGHT]) >= 25
+    ]
+    return float(np.count_nonzero(thin) / np.count_nonzero(mask)), long
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_thin_parts_has_2_to_4_limbs_at_most_4_px_from_their_axis(seed: int) -> None:
+    seq = full("thin_parts", seed, 12)
+    for mask in seq.masks:
+        share, limbs = thin_parts(mask)
+        assert share >= 0.04
+        assert 2 <= len(limbs) <= 4
+        dist = cv2.distanceTransform(mask, cv2.DIST_L2, 5)
+        for limb in limbs:  # half-width <= 4 px, plus half a pixel of the fill rule
+            assert np.percentile(dist[limb], 90) <= 4.5
+    share, limbs = thin_parts(full("plain", seed, 12).masks[0])
+    assert share < 0.01
+    assert not limbs
+
+
+def test_thin_parts_limbs_move() -> None:
+    seq = full("thin_parts", 0, 20)
+    a, b = (thin_parts(seq.masks[i])[1] for i in (0, 19))
+    overlap = np.count_nonzero(np.any(a, axis=0) & np.any(b, axis=0))
+    assert overlap < 0.8 * np.count_nonzero(np.any(a, axis=0))
+
+
+def best_rotation_iou(a: NDArray[np.uint8], b: NDArray[np.uint8]) -> float:
+    """IoU of two masks with centroids aligned, at the best turn of ``b`` (4 degree steps)."""
+    size = 400
+    ca, cb = centroid(a), centroid(b)
+    shift = np.array([[1.0, 0.0, size / 2 - ca[0]], [0.0, 1.0, size / 2 - ca[1]]])
+    fixed = cv2.warpAffine(a, shift, (size, size), flags=cv2.INTER_NEAREST) > 0
+    best = 0.0
+    for angle in range(0, 360, 4):
+        turn = cv2.getRotationMatrix2D((float(cb[0]), float(cb[1])), angle, 1.0)
+        turn[:, 2] += (size / 2 - cb[0], size / 2 - cb[1])
+        moved = cv2.warpAffine(b, turn, (size, size), flags=cv2.INTER_NEAREST) > 0
+        best = max(best, np.count_nonzero(fixed & moved) / np.count_nonzero(fixed | moved))
+    return best
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_articulated_changes_shape_beyond_any_rotation(seed: int) -> None:
+    seq = full("articulated", seed)
+    worst = min(best_rotation_iou(seq.masks[0], seq.masks[i]) for i in range(0, 40, 6))
+    assert worst < 0.6
+    plain = full("plain", seed)
+    assert min(best_rotation_iou(plain.masks[0], plain.masks[i]) for i in (18, 36)) > 0.85
+    for mask in seq.masks:  # one piece
+        assert cv2.connectedComponents(mask)[0] == 2
+
+
+def contrast_along_outline(
+    frame: NDArray[np.uint8], mask: NDArray[np.uint8], offset: float = 5.0
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per outline pixel, the BGR distance between the (5 x 5 mean) colours ``offset`` px
+    outside and inside, and the outline's length at each pixel."""
+    found, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    pts = max(found, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
+    tangent = np.roll(pts, -3, axis=0) - np.roll(pts, 3, axis=0)
+    normal = np.c_[tangent[:, 1], -tangent[:, 0]] / np.hypot(*tangent.T)[:, None]
+    H, W = mask.shape
+
+    def pixels(p: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        x = np.clip(np.rint(p[:, 0]).astype(np.intp), 0, W - 1)
+        y = np.clip(np.rint(p[:, 1]).astype(np.intp), 0, H - 1)
+        return y, x
+
+    if np.mean(mask[pixels(pts + offset * normal)] > 0) > 0.5:
+        normal = -normal  # make it point outwards
+    mean = cv2.blur(frame.astype(np.float64), (5, 5))
+    out, inn = mean[pixels(pts + offset * normal)], mean[pixels(pts - offset * normal)]
+    length = np.hypot(*(np.roll(pts, -1, axis=0) - pts).T)
+    return np.asarray(np.linalg.norm(out - inn, axis=1), np.float64), length
+
+
+def longest_run(flags: NDArray[np.bool_], length: NDArray[np.float64]) -> float:
+    """The longest circular run of True, as a share of the total length."""
+    if flags.all():
+        return 1.0
+    k = int(np.argmin(flags))  # start on a False
+    best = run = 0.0
+    for flag, step in zip(np.roll(flags, -k), np.roll(length, -k), strict=True):
+        run = run + step if flag else 0.0
+        best = max(best, run)
+    return float(best / length.sum())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_no_contrast_stretch_has_a_quarter_to_a_third_of_the_outline_without_an_edge(
+    seed: int,
+) -> None:
+    seq = full("no_contrast_stretch", seed, 8)
+    for frame, mask in zip(seq.frames, seq.masks, strict=True):
+        step, length = contrast_along_outline(frame, mask)
+        flat = longest_run(step < 10.0, length)
+        assert 0.25 <= flat <= 0.4
+        # what is left there is the object's own shading, a tenth of the edge elsewhere
+        assert np.median(step[step < 10.0]) < 0.1 * np.median(step[step >= 10.0])
+        # elsewhere the usual strong contrast
+        assert np.sum(length[step > 60.0]) / length.sum() >= 0.95 - flat
+    plain = full("plain", seed, 8)
+    step, length = contrast_along_outline(plain.frames[0], plain.masks[0])
+    assert longest_run(step < 10.0, length) == 0.0
