@@ -1,11 +1,12 @@
 """Tracking: follow an object's boundary through video with the chain's physics.
 
-:class:`Tracker` orchestrates three swappable stages, each behind a
+:class:`Tracker` orchestrates four swappable stages, each behind a
 ``typing.Protocol`` of :mod:`engine.tracking.stages` (:class:`MotionModel`,
-:class:`AppearanceModel`, :class:`BoundaryCues`), and refines the contour as
-the chain's equilibrium under the image forces (:func:`refine`).  The
-default stages are :class:`FlowMotion`, :class:`ColourHistogram` and
-:class:`RegionEdgeCues`.  Imports OpenCV (``import engine`` does not).
+:class:`AppearanceModel`, :class:`BoundaryCues`, :class:`Segmentation`), and
+refines the contour as the chain's equilibrium under the image forces
+(:func:`refine`) before the joint band segmentation.  The default stages are
+:class:`FlowMotion`, :class:`ColourHistogram`, :class:`RegionEdgeCues` and
+:class:`BandCut`.  Imports OpenCV (``import engine`` does not).
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
@@ -16,11 +17,19 @@ from engine.tracking.maps import Maps
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.refinement import Refinement, refine
-from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel, Prediction
+from engine.tracking.segmentation import BandCut
+from engine.tracking.stages import (
+    AppearanceModel,
+    BoundaryCues,
+    MotionModel,
+    Prediction,
+    Segmentation,
+)
 from engine.tracking.tracker import Tracker, TrackResult
 
 __all__ = [
     "AppearanceModel",
+    "BandCut",
     "BoundaryCues",
     "ColourHistogram",
     "FlowMotion",
@@ -29,6 +38,7 @@ __all__ = [
     "Prediction",
     "Refinement",
     "RegionEdgeCues",
+    "Segmentation",
     "TrackResult",
     "Tracker",
     "TrackerOptions",

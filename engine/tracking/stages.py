@@ -1,6 +1,6 @@
 """The tracker's swappable stages: what each one must do, as ``typing.Protocol``.
 
-:class:`engine.tracking.Tracker` runs three stages per frame and only
+:class:`engine.tracking.Tracker` runs four stages per frame and only
 orchestrates them:
 
 1. a :class:`MotionModel` predicts where the contour went (the refinement's
@@ -8,7 +8,9 @@ orchestrates them:
 2. an :class:`AppearanceModel` says how object-like each pixel is;
 3. :class:`BoundaryCues` turn that and the image into the cue maps
    (:class:`engine.tracking.maps.Maps`) on which every node seeks the
-   boundary, the chain holding the shape (:func:`engine.tracking.refine`).
+   boundary, the chain holding the shape (:func:`engine.tracking.refine`);
+4. a :class:`Segmentation` relabels the pixels near the refined contour
+   jointly and gives the final contour (or keeps the chain's).
 
 Each stage owns its state: ``to_state`` gives it as JSON-able data and
 ``from_state``, called on a stage built with the same parameters, gives a
@@ -20,9 +22,9 @@ file that has these methods; pass an instance to the tracker::
     resumed = Tracker.from_state(tracker.to_state(), motion=MyMotion())
 
 The defaults are :class:`engine.tracking.FlowMotion`,
-:class:`engine.tracking.ColourHistogram` and
-:class:`engine.tracking.RegionEdgeCues`.  Coordinates are ``[x, y]`` pixels
-(x = column, y = row), as in OpenCV.
+:class:`engine.tracking.ColourHistogram`,
+:class:`engine.tracking.RegionEdgeCues` and :class:`engine.tracking.BandCut`.
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ __all__ = [
     "MotionModel",
     "ObjectWeight",
     "Prediction",
+    "Segmentation",
     "check_kind",
 ]
 
@@ -160,6 +163,32 @@ class BoundaryCues(Protocol):
 
     def object_weight(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """p(object) in the last frame seen at ``[x, y]`` points (1 where unknown)."""
+
+    def to_state(self) -> dict[str, Any]:
+        """JSON-able state (what was learnt; not the constructor's parameters)."""
+
+    def from_state(self, state: Mapping[str, Any]) -> Self:
+        """A stage with this one's parameters holding ``state``; ValueError if malformed."""
+
+
+@runtime_checkable
+class Segmentation(Protocol):
+    """Labels the pixels near the refined contour jointly; gives the final contour."""
+
+    def start(self, image: Frame, nodes: NDArray[np.float64]) -> None:
+        """The first frame (or the first after a new contour): learn the object there."""
+
+    def learn(self, image: Frame, nodes: NDArray[np.float64]) -> None:
+        """Learn from this frame's final contour."""
+
+    def segment(
+        self,
+        image: Frame,
+        maps: Maps,
+        predicted: NDArray[np.float64],
+        refined: NDArray[np.float64],
+    ) -> NDArray[np.float64] | None:
+        """The final (N, 2) ``[x, y]`` contour, or None to keep ``refined`` (the chain's)."""
 
     def to_state(self) -> dict[str, Any]:
         """JSON-able state (what was learnt; not the constructor's parameters)."""

@@ -1,6 +1,6 @@
 """``Tracker``: follow an object's boundary through video frames.
 
-The tracker orchestrates three swappable stages (:mod:`engine.tracking.stages`)
+The tracker orchestrates four swappable stages (:mod:`engine.tracking.stages`)
 and the physics.  Per frame (``step``):
 
 1. a :class:`~engine.tracking.stages.MotionModel` predicts where the contour
@@ -14,8 +14,12 @@ and the physics.  Per frame (``step``):
    equilibrium around the predicted shape, X = X0 + U with (I + K) U = F
    (paper eq. 13-16, :func:`engine.deform`), keeps the shape plausible
    through noise, clutter and occlusion;
-4. resample by arc length and guard against crossing, collapse and NaN; a
-   confident frame teaches the appearance model.
+4. resample by arc length and guard against crossing, collapse and NaN;
+5. a :class:`~engine.tracking.stages.Segmentation` relabels the pixels
+   within a few pixels of the refined contour jointly (default
+   :class:`~engine.tracking.segmentation.BandCut`: local colour models, the
+   chain's contour as the shape prior, a minimum cut) and gives the final
+   contour; a confident frame teaches the appearance model.
 
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
@@ -42,13 +46,16 @@ from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.refinement import refine
-from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel
+from engine.tracking.segmentation import BandCut
+from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel, Segmentation
+from engine.tracking.validity import valid_contour
 
 __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
-STATE_VERSION = 2
-"""Version 2 keeps each stage's state under ``"stages"``; version 1 (the
-colour model, probability and corners at the top level) is still read."""
+STATE_VERSION = 3
+"""Version 3 adds the segmentation stage; version 2 (each other stage's state
+under ``"stages"``) and version 1 (the colour model, probability and corners
+at the top level) are still read, the segmentation learning afresh."""
 MIN_SIDE = 16
 """Frames smaller than this (pixels) carry no trackable information."""
 MOTION_SHARE = 0.4
@@ -58,7 +65,7 @@ even when the object's texture gives the motion little support."""
 LEARN_ABOVE = 0.5
 """Only frames whose learning signal is at least this teach the appearance
 model, so that a lost or occluded object does not teach it the background."""
-STAGES = ("motion", "appearance", "cues")
+STAGES = ("motion", "appearance", "cues", "segmentation")
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,6 +153,9 @@ class Tracker:
     cues : BoundaryCues, optional
         The cue-map stage (default :class:`~engine.tracking.RegionEdgeCues`
         with the options' ``search_radius`` and ``occlusion``).
+    segmentation : Segmentation, optional
+        The joint segmentation stage (default :class:`~engine.tracking.BandCut`
+        with the options' ``cut_band``).
     **options
         Other :class:`TrackerOptions` fields.
 
@@ -164,6 +174,7 @@ class Tracker:
         motion: MotionModel | None = None,
         appearance: AppearanceModel | None = None,
         cues: BoundaryCues | None = None,
+        segmentation: Segmentation | None = None,
         **options: Any,
     ) -> None:
         if not closed:
@@ -177,10 +188,12 @@ class Tracker:
             opts.band, opts.learning_rate
         )
         self.cues: BoundaryCues = cues or RegionEdgeCues(opts.search_radius, opts.occlusion)
+        self.segmentation: Segmentation = segmentation or BandCut(opts.cut_band)
         for name, stage, kind in (
             ("motion", self.motion, MotionModel),
             ("appearance", self.appearance, AppearanceModel),
             ("cues", self.cues, BoundaryCues),
+            ("segmentation", self.segmentation, Segmentation),
         ):
             if not isinstance(stage, kind):
                 raise ValueError(
@@ -251,15 +264,20 @@ class Tracker:
         refinement = refine(
             maps, grey.shape, prediction.nodes, options=self.options, previous_nodes=self._nodes
         )
+        nodes = refinement.nodes
+        cut = self.segmentation.segment(image, maps, prediction.nodes, nodes)
+        if cut is not None and valid_contour(cut, grey.shape, self._nodes):
+            nodes = cut
         support = MOTION_SHARE * prediction.support
         signal = support + (1 - MOTION_SHARE) * refinement.contrast
-        confidence = calibrated(evidence(maps, refinement.nodes, refinement.converged))
+        confidence = calibrated(evidence(maps, nodes, refinement.converged))
         if not self._visible(grey):
             signal = confidence = 0.0
-        self._nodes = refinement.nodes
+        self._nodes = nodes
         self._previous = grey
         if signal >= LEARN_ABOVE:
             self.appearance.update(image, self._nodes)
+        self.segmentation.learn(image, self._nodes)
         return self._result(refinement.iterations, refinement.converged, confidence)
 
     def _start(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
@@ -268,6 +286,7 @@ class Tracker:
         self.motion.reset()
         self.appearance.fit(image, self._nodes)
         self.cues.start(image, self._nodes, self.appearance)
+        self.segmentation.start(image, self._nodes)
         return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
@@ -313,14 +332,18 @@ class Tracker:
         motion: MotionModel | None = None,
         appearance: AppearanceModel | None = None,
         cues: BoundaryCues | None = None,
+        segmentation: Segmentation | None = None,
     ) -> Tracker:
         """Rebuild a tracker from :meth:`to_state` output.
 
         Parameters
         ----------
         state : dict
-            A snapshot of version 2, or of version 1 (before the stages).
-        motion, appearance, cues : optional
+            A snapshot of version 3, 2 (before the segmentation stage) or 1
+            (before the stages); the older ones continue exactly as the
+            tracker that wrote them, without the segmentation stage
+            (``cut_band`` 0) unless their options ask for it.
+        motion, appearance, cues, segmentation : optional
             Stages built like those of the tracker that wrote ``state`` (the
             defaults when it used the defaults); they get the state's.
 
@@ -330,17 +353,22 @@ class Tracker:
             If the state is malformed, of an unknown version, or of stages
             other than those given.
         """
-        if not isinstance(state, Mapping) or state.get("version") not in (1, STATE_VERSION):
-            raise ValueError(f"tracker state must be a dict of version 1 or {STATE_VERSION}")
+        if not isinstance(state, Mapping) or state.get("version") not in (1, 2, STATE_VERSION):
+            raise ValueError(f"tracker state must be a dict of version 1 to {STATE_VERSION}")
         try:
             if state["version"] == 1:
                 state = _from_version_1(state)
+            options = dict(state["options"])
+            if state["version"] < STATE_VERSION:
+                # written before the segmentation stage: continue as the tracker that wrote it
+                options.setdefault("cut_band", 0)
             tracker = cls(
                 state["nodes"],
                 motion=motion,
                 appearance=appearance,
                 cues=cues,
-                **dict(state["options"]),
+                segmentation=segmentation,
+                **options,
             )
             tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
             tracker.frame_index = int(state["frame_index"])
@@ -349,6 +377,9 @@ class Tracker:
                 tracker.motion = tracker.motion.from_state(stages["motion"])
                 tracker.appearance = tracker.appearance.from_state(stages["appearance"])
                 tracker.cues = tracker.cues.from_state(stages["cues"])
+                if "segmentation" in stages:  # not in version 2
+                    segmented = tracker.segmentation.from_state(stages["segmentation"])
+                    tracker.segmentation = segmented
                 tracker._previous = unpack_image(previous)
         except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
             raise ValueError(f"malformed tracker state: {exc}") from None
@@ -370,7 +401,7 @@ def _from_version_1(state: Mapping[str, Any]) -> dict[str, Any]:
             "cues": {"kind": "region-edge-cues", "memory": state.get("probability")},
         }
     return {
-        "version": STATE_VERSION,
+        "version": 2,
         "nodes": state["nodes"],
         "options": state["options"],
         "frame_index": state["frame_index"],

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from engine import TrackerOptions, TrackResult
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking._state_codec import pack_histogram as _pack
+from engine.tracking.local_colour import _pack as _pack_counts
 from engine.tracking.tracker import STATE_VERSION, Tracker
 from tests.engine.tracking.moving_disc import (
     H,
@@ -56,7 +57,7 @@ def test_state_is_json_and_names_every_option(
     assert set(state["options"]) == {f.name for f in dataclasses.fields(TrackerOptions)}
     assert state["frame_index"] == 4
     assert state["version"] == STATE_VERSION
-    assert set(state["stages"]) == {"motion", "appearance", "cues"}
+    assert set(state["stages"]) == {"motion", "appearance", "cues", "segmentation"}
     # the corners being tracked on, for an exact resume
     features = state["stages"]["motion"]["features"]
     assert len(features) >= 3
@@ -139,7 +140,7 @@ def deleter(key: str) -> Callable[[State], None]:
 
 
 MALFORMED: dict[str, Callable[[State], None]] = {
-    "version 3": setter("version", value=3),
+    "version 4": setter("version", value=4),
     "version 0": setter("version", value=0),
     "version as text": setter("version", value="2"),
     "no version": deleter("version"),
@@ -185,6 +186,21 @@ MALFORMED: dict[str, Callable[[State], None]] = {
     "features: NaN": setter("stages", "motion", "features", value=[[math.nan, 1.0]] * 4),
     "features: not pairs": setter("stages", "motion", "features", value=[1.0, 2.0, 3.0]),
     "features: text": setter("stages", "motion", "features", value="corners"),
+    "segmentation: another kind": setter("stages", "segmentation", "kind", value="grabcut"),
+    "segmentation: windows a list": setter("stages", "segmentation", "windows", value=[1]),
+    "segmentation: bad counts": setter(
+        "stages", "segmentation", "windows", "object", value=base64.b64encode(b"x").decode()
+    ),
+    "segmentation: negative counts": setter(
+        "stages",
+        "segmentation",
+        "windows",
+        "object",
+        value=_pack_counts(-np.ones((32, 512), np.float32)),
+    ),
+    "segmentation: no window size": lambda state: state["stages"]["segmentation"]["windows"].pop(
+        "half"
+    ),
 }
 
 
@@ -227,15 +243,31 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
     """States written before the stages (version 1) continue as if uninterrupted."""
     old: State = json.loads(VERSION_1.read_text())
     assert old["version"] == 1
-    tracker = Tracker(initial())
+    tracker = Tracker(initial(), cut_band=0)  # version 1 had no segmentation stage
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])
     restored = Tracker.from_state(old)
+    assert restored.options.cut_band == 0
     assert restored.frame_index == 4
     for frame, want in zip(frames[5:10], expected, strict=True):
         assert_same(restored.step(frame), want)
     upgraded = restored.to_state()
     assert upgraded["version"] == STATE_VERSION
+
+
+def test_a_version_2_state_resumes_exactly(frames: list[U8]) -> None:
+    """States written before the segmentation stage continue as the tracker that wrote them."""
+    tracker = Tracker(initial(), cut_band=0)
+    run(tracker, frames[:5])
+    old = through_json(tracker.to_state())
+    old["version"] = 2
+    del old["stages"]["segmentation"]
+    del old["options"]["cut_band"]
+    expected = run(tracker, frames[5:10])
+    restored = Tracker.from_state(old)
+    assert restored.options.cut_band == 0
+    for frame, want in zip(frames[5:10], expected, strict=True):
+        assert_same(restored.step(frame), want)
 
 
 @pytest.mark.parametrize("key", ["model", "probability", "features", "previous"])

@@ -1,0 +1,204 @@
+"""Compiled loops (numba) of the band segmentation: local colour windows and the band graph.
+
+Imported lazily, like :mod:`engine.tracking._image_kernels`.  Images are
+indexed ``[y, x]``; window centres are ``[x, y]`` pixels of the same region.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+PROBABILITY_FLOOR = 1e-3
+"""p(object) is clipped to [1e-3, 1 - 1e-3]: a colour never seen on one side
+costs at most log(999) ~ 7 in the cut, not infinity."""
+SHAPE_CLIP = 6.0
+"""The shape prior's log-odds saturate at 6 (p ~ 0.998): beyond that the band's
+fixed pixels, not the prior, hold the object."""
+UNSEEN = 0.01
+"""Pseudo-count per bin of a window's histograms, so that a colour the window
+never saw has equal (small) likelihood on both sides."""
+COVERED = 0.3
+"""Summed window weight at which a pixel counts as fully covered by local models;
+less coverage blends in the global model."""
+
+
+@nb.njit(cache=True, nogil=True)
+def learn_windows(
+    bins: NDArray[np.uint16],
+    inside: NDArray[np.uint8],
+    outside: NDArray[np.uint8],
+    centres: NDArray[np.int64],
+    half: int,
+    nbins: int,
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Object and background colour counts of square windows.
+
+    ``bins``: colour bin per pixel; ``inside``/``outside``: 1 where a pixel is
+    surely object / surely background; ``centres``: (K, 2) ``[x, y]`` window
+    centres; ``half``: half the window's side.  Returns (K, nbins) counts.
+    """
+    h, w = bins.shape
+    k = centres.shape[0]
+    fg = np.zeros((k, nbins), dtype=np.float32)
+    bg = np.zeros((k, nbins), dtype=np.float32)
+    for n in range(k):
+        cx, cy = centres[n, 0], centres[n, 1]
+        for y in range(max(cy - half, 0), min(cy + half + 1, h)):
+            for x in range(max(cx - half, 0), min(cx + half + 1, w)):
+                if inside[y, x]:
+                    fg[n, bins[y, x]] += 1.0
+                elif outside[y, x]:
+                    bg[n, bins[y, x]] += 1.0
+    return fg, bg
+
+
+@nb.njit(cache=True, nogil=True)
+def local_probability(
+    bins: NDArray[np.uint16],
+    wanted: NDArray[np.uint8],
+    centres: NDArray[np.int64],
+    half: int,
+    fg: NDArray[np.float32],
+    bg: NDArray[np.float32],
+    trust: float,
+    min_count: float,
+    fallback: NDArray[np.float32],
+) -> NDArray[np.float32]:
+    """p(object) from the windows' models, blended where windows overlap.
+
+    Each window k gives p_k = P_k(c | object) / (P_k(c | object) + P_k(c |
+    background)) from its own counts, trusted in proportion to how often it
+    saw the colour (``trust`` sightings: fully); ``fallback`` (the global
+    model's p) fills in the rest.  Windows are weighted by a Gaussian of the
+    distance to their centre.  Only pixels where ``wanted`` is set are
+    computed; the others keep ``fallback``.
+    """
+    h, w = bins.shape
+    nb_ = fg.shape[1]
+    num = np.zeros((h, w), dtype=np.float32)
+    den = np.zeros((h, w), dtype=np.float32)
+    spread = 2.0 * (0.6 * half) ** 2
+    for n in range(centres.shape[0]):
+        nf = 0.0
+        nbg = 0.0
+        for b in range(nb_):
+            nf += fg[n, b]
+            nbg += bg[n, b]
+        if nf < min_count or nbg < min_count:
+            continue
+        zf = nf + UNSEEN * nb_
+        zb = nbg + UNSEEN * nb_
+        cx, cy = centres[n, 0], centres[n, 1]
+        for y in range(max(cy - half, 0), min(cy + half + 1, h)):
+            for x in range(max(cx - half, 0), min(cx + half + 1, w)):
+                if not wanted[y, x]:
+                    continue
+                c = bins[y, x]
+                pf = (fg[n, c] + UNSEEN) / zf
+                pb = (bg[n, c] + UNSEEN) / zb
+                seen = min((fg[n, c] + bg[n, c]) / trust, 1.0)
+                p = seen * pf / (pf + pb) + (1.0 - seen) * fallback[y, x]
+                weight = math.exp(-((x - cx) ** 2 + (y - cy) ** 2) / spread)
+                num[y, x] += weight * p
+                den[y, x] += weight
+    out = fallback.copy()
+    for y in range(h):
+        for x in range(w):
+            if den[y, x] > 0.0:
+                cover = min(den[y, x] / COVERED, 1.0)
+                out[y, x] = cover * num[y, x] / den[y, x] + (1.0 - cover) * fallback[y, x]
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def band_graph(
+    distance: NDArray[np.float32],
+    band: float,
+    image: NDArray[np.uint8],
+    probability: NDArray[np.float32],
+    weights: NDArray[np.float64],
+) -> tuple[
+    NDArray[np.int64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int32],
+    NDArray[np.int32],
+    NDArray[np.float64],
+]:
+    """The graph of the band's pixels for a binary cut (object = source side).
+
+    ``distance``: signed distance (pixels, > 0 inside) to the prior contour;
+    pixels with ``|distance| <= band`` are free, the others keep their side
+    and pass their links to the free neighbours as terminal weights.
+    ``weights`` = (colour, shape, smoothness, shape scale): the unary term is
+    ``colour * logit(p) + shape * clip(distance / scale)`` and each 4-neighbour
+    link costs ``smoothness * exp(-|dI|^2 / (2 mean |dI|^2))`` (contrast-
+    sensitive Potts, as in GrabCut).
+
+    Returns the flat indices of the free pixels, their source and sink
+    capacities, and the links between free pixels (i, j, capacity).
+    """
+    h, w = distance.shape
+    channels = image.shape[2]
+    colour, shape, smooth, scale = weights[0], weights[1], weights[2], weights[3]
+    index = np.full(h * w, -1, dtype=np.int32)
+    count = 0
+    for y in range(h):
+        for x in range(w):
+            if abs(distance[y, x]) <= band:
+                index[y * w + x] = count
+                count += 1
+    pixels = np.empty(count, dtype=np.int64)
+    source = np.empty(count, dtype=np.float64)
+    sink = np.empty(count, dtype=np.float64)
+    total = 0.0
+    links = 0
+    for y in range(h):
+        for x in range(w):
+            k = index[y * w + x]
+            if k < 0:
+                continue
+            pixels[k] = y * w + x
+            p = min(max(probability[y, x], PROBABILITY_FLOOR), 1.0 - PROBABILITY_FLOOR)
+            d = min(max(distance[y, x] / scale, -SHAPE_CLIP), SHAPE_CLIP)
+            u = colour * math.log(p / (1.0 - p)) + shape * d
+            source[k] = max(u, 0.0)
+            sink[k] = max(-u, 0.0)
+            for dy, dx in ((0, 1), (1, 0)):
+                if y + dy < h and x + dx < w:
+                    diff = 0.0
+                    for c in range(channels):
+                        t = float(image[y, x, c]) - float(image[y + dy, x + dx, c])
+                        diff += t * t
+                    total += diff
+                    links += 1
+    contrast = 1.0 / (2.0 * max(total / max(links, 1), 1e-6))
+    li = np.empty(2 * count, dtype=np.int32)
+    lj = np.empty(2 * count, dtype=np.int32)
+    lw = np.empty(2 * count, dtype=np.float64)
+    m = 0
+    for k in range(count):
+        y, x = pixels[k] // w, pixels[k] % w
+        for dy, dx in ((0, 1), (1, 0), (0, -1), (-1, 0)):
+            yy, xx = y + dy, x + dx
+            if yy < 0 or yy >= h or xx < 0 or xx >= w:
+                continue
+            diff = 0.0
+            for c in range(channels):
+                t = float(image[y, x, c]) - float(image[yy, xx, c])
+                diff += t * t
+            cost = smooth * math.exp(-contrast * diff)
+            other = index[yy * w + xx]
+            if other >= 0:
+                if dy + dx > 0:  # each free-free link once, from its upper-left end
+                    li[m], lj[m], lw[m] = k, other, cost
+                    m += 1
+            elif distance[yy, xx] > 0:
+                source[k] += cost
+            else:
+                sink[k] += cost
+    return pixels, source, sink, li[:m], lj[:m], lw[:m]

@@ -1,0 +1,202 @@
+"""``LocalColour``: colour models of the object against its own surroundings, window by window.
+
+A single colour histogram for the whole object fails where the object's
+colours appear in the background elsewhere (a shadow, grass, water): it
+calls them object everywhere.  Square windows centred on the contour, as in
+Video SnapCut (Bai et al., SIGGRAPH 2009), each learn the object's and the
+background's colours *there*; in the next frame they move with the
+predicted contour and say, pixel by pixel, how object-like each colour is
+locally.  Where a window never saw a colour, the global model's p(object)
+fills in.  Learnt from every frame's final contour (pixels a few pixels
+away from it on either side, so that the boundary's mixed pixels teach
+neither side).  Coordinates are ``[x, y]`` pixels (x = column, y = row).
+"""
+
+from __future__ import annotations
+
+import base64
+import zlib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import contour_to_mask
+
+__all__ = ["WINDOWS", "LocalColour"]
+
+WINDOWS = 32
+"""Windows along the contour: a 128-node contour gets one every four nodes,
+dense enough that neighbouring windows overlap by a third."""
+MIN_HALF = 12
+"""Smallest half side (pixels) of a window: 25 x 25 pixels, a few hundred of
+each side's pixels, enough for a 512-bin histogram to say something."""
+OVERLAP = 0.75
+"""Half side = 0.75 x the contour length per window: windows overlap so that
+every pixel near the contour is covered by two or three of them."""
+INSET = 2
+"""Pixels within 2 of the contour teach neither side: they mix object and background."""
+COLOUR_BITS = 3
+"""8 levels per BGR channel, 512 bins: a window has only hundreds of pixels per side."""
+GREY_BITS = 5
+"""32 grey levels for grey frames."""
+TRUST = 12.0
+"""A window trusts its own p(object) for a colour fully after 12 sightings of it."""
+MIN_COUNT = 10.0
+"""A window with fewer pixels than this on either side says nothing."""
+
+
+def colour_bins(image: NDArray[np.uint8]) -> NDArray[np.uint16]:
+    """Bin of every pixel (BGR: 8^3 bins; grey: 32)."""
+    from engine.tracking._image_kernels import colour_bins as kernel
+
+    arr = np.ascontiguousarray(image, dtype=np.uint8)
+    arr = arr[..., None] if arr.ndim == 2 else arr
+    bins: NDArray[np.uint16] = kernel(arr, GREY_BITS, COLOUR_BITS)
+    return bins
+
+
+def bin_count(image: NDArray[np.uint8]) -> int:
+    """Number of bins for frames like ``image``."""
+    return 1 << (GREY_BITS if image.ndim == 2 else 3 * COLOUR_BITS)
+
+
+def window_half(nodes: NDArray[np.float64]) -> int:
+    """Half side (pixels) of the windows for a contour: :data:`OVERLAP` of its length per window."""
+    closed = np.vstack([nodes, nodes[:1]])
+    length = float(np.linalg.norm(np.diff(closed, axis=0), axis=1).sum())
+    return max(MIN_HALF, round(OVERLAP * length / WINDOWS))
+
+
+def window_nodes(count: int) -> NDArray[np.int64]:
+    """Indices of the nodes the windows are centred on (evenly spaced)."""
+    return (np.arange(WINDOWS) * count) // WINDOWS
+
+
+@dataclass(frozen=True, slots=True)
+class LocalColour:
+    """Colour counts of the object and of the background in windows along a contour.
+
+    Attributes
+    ----------
+    half : int
+        Half side of each window, pixels.
+    nodes : int
+        Node count of the contour the windows ride on (windows sit on nodes
+        :func:`window_nodes` of it).
+    object_counts, background_counts : numpy.ndarray
+        (:data:`WINDOWS`, bins) float32 pixel counts per colour bin.
+    """
+
+    half: int
+    nodes: int
+    object_counts: NDArray[np.float32]
+    background_counts: NDArray[np.float32]
+
+    @classmethod
+    def learn(cls, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> LocalColour | None:
+        """The windows' models from a frame and the object's contour on it (None off-frame)."""
+        from engine.tracking._cut_kernels import learn_windows
+
+        half = window_half(nodes)
+        height, width = image.shape[:2]
+        x0, y0 = (np.floor(nodes.min(axis=0)).astype(int) - half - 1).clip(0)
+        x1 = min(int(np.ceil(nodes[:, 0].max())) + half + 2, width)
+        y1 = min(int(np.ceil(nodes[:, 1].max())) + half + 2, height)
+        if x1 - x0 < 3 or y1 - y0 < 3:
+            return None
+        mask = contour_to_mask(nodes - [x0, y0], (y1 - y0, x1 - x0))
+        kernel = np.ones((2 * INSET + 1, 2 * INSET + 1), np.uint8)
+        inside = (cv2.erode(mask, kernel) > 0).astype(np.uint8)
+        outside = (cv2.dilate(mask, kernel) == 0).astype(np.uint8)
+        centres = np.round(nodes[window_nodes(len(nodes))] - [x0, y0]).astype(np.int64)
+        bins = colour_bins(image[y0:y1, x0:x1])
+        fg, bg = learn_windows(bins, inside, outside, centres, half, bin_count(image))
+        return cls(half, len(nodes), fg, bg)
+
+    def probability(
+        self,
+        image: NDArray[np.uint8],
+        origin: tuple[int, int],
+        nodes: NDArray[np.float64],
+        fallback: NDArray[np.float32],
+        wanted: NDArray[np.uint8],
+    ) -> NDArray[np.float32]:
+        """p(object) over a region, the windows riding on ``nodes`` (the predicted contour).
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            The frame.
+        origin : tuple of int
+            ``(x, y)`` of the region's top-left pixel; the region has
+            ``fallback``'s shape.
+        nodes : numpy.ndarray
+            (N, 2) ``[x, y]`` contour the windows are centred on.
+        fallback : numpy.ndarray
+            The global model's p(object) over the region, used where no
+            window knows better.
+        wanted : numpy.ndarray
+            uint8, 1 where p is needed (elsewhere ``fallback`` is returned).
+        """
+        from engine.tracking._cut_kernels import local_probability
+
+        if len(nodes) != self.nodes or bin_count(image) != self.object_counts.shape[1]:
+            return fallback
+        x0, y0 = origin
+        h, w = fallback.shape
+        centres = np.round(nodes[window_nodes(len(nodes))] - [x0, y0]).astype(np.int64)
+        bins = colour_bins(image[y0 : y0 + h, x0 : x0 + w])
+        result: NDArray[np.float32] = local_probability(
+            bins,
+            wanted,
+            centres,
+            self.half,
+            self.object_counts,
+            self.background_counts,
+            TRUST,
+            MIN_COUNT,
+            np.ascontiguousarray(fallback, dtype=np.float32),
+        )
+        return result
+
+    def to_state(self) -> dict[str, Any]:
+        """``{"half", "nodes", "object", "background"}`` (counts packed exactly)."""
+        return {
+            "half": self.half,
+            "nodes": self.nodes,
+            "object": _pack(self.object_counts),
+            "background": _pack(self.background_counts),
+        }
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, Any]) -> LocalColour:
+        """Inverse of :meth:`to_state`; ValueError on anything malformed."""
+        half, nodes = int(state["half"]), int(state["nodes"])
+        if not 1 <= half <= 1 << 16 or nodes < 3:
+            raise ValueError("local colour windows: bad window size or node count")
+        fg, bg = _unpack(state["object"]), _unpack(state["background"])
+        if fg.shape != bg.shape:
+            raise ValueError("local colour windows: object and background counts differ in size")
+        return cls(half, nodes, fg, bg)
+
+
+_SIZES = (1 << GREY_BITS, 1 << (3 * COLOUR_BITS))
+
+
+def _pack(counts: NDArray[np.float32]) -> str:
+    return base64.b64encode(zlib.compress(counts.astype("<f4").tobytes())).decode("ascii")
+
+
+def _unpack(text: str) -> NDArray[np.float32]:
+    limit = WINDOWS * max(_SIZES) * 4
+    raw = zlib.decompressobj().decompress(base64.b64decode(text, validate=True), limit + 1)
+    if len(raw) not in (WINDOWS * size * 4 for size in _SIZES):
+        raise ValueError("local colour windows: counts of the wrong size")
+    counts = np.frombuffer(raw, dtype="<f4").astype(np.float32).reshape(WINDOWS, -1)
+    if not np.isfinite(counts).all() or (counts < 0).any():
+        raise ValueError("local colour windows: counts must be finite and >= 0")
+    return counts

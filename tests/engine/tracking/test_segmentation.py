@@ -1,0 +1,214 @@
+"""engine.tracking.BandCut and LocalColour: the joint band segmentation after the chain."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou
+from engine.tracking import BandCut, Maps, Tracker
+from engine.tracking._cut_kernels import PROBABILITY_FLOOR, SHAPE_CLIP
+from engine.tracking.local_colour import LocalColour
+from engine.tracking.segmentation import (
+    COLOUR_WEIGHT,
+    SHAPE_SCALE,
+    SHAPE_WEIGHT,
+    SMOOTHNESS,
+    _cut,
+    _signed_distance,
+)
+
+F64 = NDArray[np.float64]
+U8 = NDArray[np.uint8]
+
+
+def energy(
+    labels: NDArray[np.bool_],
+    distance: NDArray[np.float32],
+    band: float,
+    image: U8,
+    probability: NDArray[np.float32],
+) -> float:
+    """E(L) of the segmentation module's docstring, written out pixel by pixel."""
+    h, w = distance.shape
+    free = np.abs(distance) <= band
+    total = 0.0
+    diffs = []
+    for y, x in zip(*np.nonzero(free), strict=True):
+        for dy, dx in ((0, 1), (1, 0)):
+            if y + dy < h and x + dx < w:
+                d = image[y, x].astype(float) - image[y + dy, x + dx].astype(float)
+                diffs.append(float(d @ d))
+    contrast = 1.0 / (2.0 * max(float(np.mean(diffs)), 1e-6))
+    for y, x in zip(*np.nonzero(free), strict=True):
+        p = min(max(float(probability[y, x]), PROBABILITY_FLOOR), 1 - PROBABILITY_FLOOR)
+        shape = min(max(float(distance[y, x]) / SHAPE_SCALE, -SHAPE_CLIP), SHAPE_CLIP)
+        u = COLOUR_WEIGHT * math.log(p / (1 - p)) + SHAPE_WEIGHT * shape
+        total += max(-u, 0.0) if labels[y, x] else max(u, 0.0)
+    for y in range(h):
+        for x in range(w):
+            for dy, dx in ((0, 1), (1, 0)):
+                yy, xx = y + dy, x + dx
+                if yy >= h or xx >= w or not (free[y, x] or free[yy, xx]):
+                    continue
+                if labels[y, x] != labels[yy, xx]:
+                    d = image[y, x].astype(float) - image[yy, xx].astype(float)
+                    total += SMOOTHNESS * math.exp(-contrast * float(d @ d))
+    return total
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_cut_is_the_minimum_energy_labelling(seed: int) -> None:
+    """Against every labelling of the band's pixels, enumerated."""
+    rng = np.random.default_rng(seed)
+    h, w = 5, 6
+    inside = np.zeros((h, w), np.uint8)
+    inside[1:3, 2:4] = 1
+    distance = _signed_distance(inside)
+    band = 1.0
+    free = np.abs(distance) <= band
+    assert 8 <= free.sum() <= 16  # small enough to enumerate
+    image = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    probability = rng.uniform(0.0, 1.0, (h, w)).astype(np.float32)
+    found = _cut(distance, band, image, probability, 1)
+    np.testing.assert_array_equal(found[~free], distance[~free] > band)
+    best = math.inf
+    spots = list(zip(*np.nonzero(free), strict=True))
+    for bits in itertools.product((False, True), repeat=len(spots)):
+        labels = distance > band
+        for (y, x), bit in zip(spots, bits, strict=True):
+            labels[y, x] = bit
+        best = min(best, energy(labels, distance, band, image, probability))
+    assert energy(found, distance, band, image, probability) == pytest.approx(best, abs=1e-9)
+
+
+def disc_frame(radius: float, centre: tuple[float, float] = (80.0, 60.0)) -> tuple[U8, U8]:
+    """A bright textured disc on a dark textured background, 120 x 160, and its mask."""
+    rng = np.random.default_rng(0)
+    h, w = 120, 160
+    truth = contour_to_mask(circle_nodes(centre, radius, 720), (h, w))
+    image = np.where(truth[..., None] > 0, [60, 160, 220], [90, 60, 30]).astype(np.float64)
+    image += rng.normal(0, 6, image.shape)
+    return np.clip(image, 0, 255).astype(np.uint8), truth
+
+
+def global_maps(image: U8, p_object: float = 0.5) -> Maps:
+    """Maps over the whole frame with an uninformative global p(object)."""
+    h, w = image.shape[:2]
+    return Maps((0, 0), np.full((h, w), p_object, np.float32), np.zeros((h, w), np.float32))
+
+
+def test_the_cut_snaps_a_contour_that_is_off_to_the_edge() -> None:
+    image, truth = disc_frame(30.0)
+    off = circle_nodes((80.0, 60.0), 26.0, 128)  # the chain left it 4 pixels inside
+    stage = BandCut(8)
+    stage.start(image, circle_nodes((80.0, 60.0), 30.0, 128))
+    found = stage.segment(image, global_maps(image), off, off)
+    assert found is not None
+    assert found.shape == (128, 2)
+    before = mask_iou(contour_to_mask(off, truth.shape), truth)
+    after = mask_iou(contour_to_mask(found, truth.shape), truth)
+    assert before < 0.8 < 0.95 < after
+
+
+def test_the_cut_moves_the_boundary_by_at_most_the_band() -> None:
+    image, _ = disc_frame(55.0)
+    small = circle_nodes((80.0, 60.0), 20.0, 128)
+    stage = BandCut(5)
+    stage.start(image, circle_nodes((80.0, 60.0), 55.0, 128))
+    found = stage.segment(image, global_maps(image, 0.9), small, small)
+    assert found is not None
+    radii = np.hypot(*(found - [80.0, 60.0]).T)
+    assert radii.max() <= 20.0 + 5.0 + 1.5  # the band, and rasterisation
+    assert radii.mean() > 23.0  # and it did grow towards the edge
+
+
+def test_no_cut_without_a_band_or_when_the_object_splits() -> None:
+    image, _ = disc_frame(30.0)
+    nodes = circle_nodes((80.0, 60.0), 30.0, 128)
+    assert BandCut(0).segment(image, global_maps(image), nodes, nodes) is None
+    # a bar 12 pixels thin, cut in two comparable pieces by a background-coloured gap
+    from engine.geometry import resample
+
+    bar = resample(np.array([[40.0, 54.0], [120.0, 54.0], [120.0, 66.0], [40.0, 66.0]]), 128)
+    mask = contour_to_mask(bar, image.shape)
+    split = np.where(mask[..., None] > 0, [60, 160, 220], [90, 60, 30]).astype(np.uint8)
+    stage = BandCut(8)
+    stage.start(split, bar)
+    split[:, 76:85] = (90, 60, 30)
+    probability = np.where(mask > 0, 0.9, 0.1).astype(np.float32)
+    probability[:, 76:85] = 0.001
+    maps = Maps((0, 0), probability, np.zeros_like(probability))
+    assert stage.segment(split, maps, bar, bar) is None
+
+
+def test_local_colour_tells_apart_what_the_global_model_cannot() -> None:
+    """Object blue on its left half and red on its right; the background the other way round."""
+    h, w = 100, 200
+    image = np.zeros((h, w, 3), np.uint8)
+    blue, red = (200, 40, 40), (40, 40, 200)
+    image[:, :100] = red
+    image[:, 100:] = blue
+    box = np.array([[60.0, 30.0], [140.0, 30.0], [140.0, 70.0], [60.0, 70.0]])
+    inside = contour_to_mask(box, (h, w)) > 0
+    image[inside & (np.arange(w) < 100)] = blue
+    image[inside & (np.arange(w) >= 100)] = red
+    from engine.geometry import resample
+
+    nodes = resample(box, 128)
+    windows = LocalColour.learn(image, nodes)
+    assert windows is not None
+    fallback = np.full((h, w), 0.5, np.float32)  # global: both colours inside and out
+    local = windows.probability(image, (0, 0), nodes, fallback, np.ones((h, w), np.uint8))
+    near = cv2.dilate(inside.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
+    left_object = inside & near & (np.arange(w) < 90)
+    left_background = near & ~inside & (np.arange(w) < 60)
+    assert local[left_object].mean() > 0.8
+    assert local[left_background].mean() < 0.2
+    restored = LocalColour.from_state(windows.to_state())
+    np.testing.assert_array_equal(restored.object_counts, windows.object_counts)
+    np.testing.assert_array_equal(restored.background_counts, windows.background_counts)
+
+
+def test_the_stage_state_round_trips_and_checks_its_kind() -> None:
+    image, _ = disc_frame(30.0)
+    nodes = circle_nodes((80.0, 60.0), 30.0, 128)
+    stage = BandCut(8)
+    stage.start(image, nodes)
+    restored = BandCut(8).from_state(stage.to_state())
+    off = circle_nodes((80.0, 60.0), 27.0, 128)
+    a = stage.segment(image, global_maps(image), off, off)
+    b = restored.segment(image, global_maps(image), off, off)
+    assert a is not None
+    assert b is not None
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="band-cut"):
+        BandCut(8).from_state({"kind": "grabcut"})
+
+
+def test_the_tracker_follows_a_growing_thin_part() -> None:
+    """A leg that grows out of the body: the cut pulls the contour into it."""
+    h, w = 160, 200
+    frames, masks = [], []
+    for k in range(12):
+        mask = contour_to_mask(circle_nodes((100.0, 60.0), 35.0, 360), (h, w))
+        cv2.rectangle(mask, (96, 60), (104, 95 + 4 * k), 255, -1)
+        image = np.where(mask[..., None] > 0, [50, 170, 230], [110, 70, 40]).astype(np.uint8)
+        frames.append(image)
+        masks.append(mask)
+    from engine.geometry import mask_to_contour
+
+    chain_only = Tracker(mask_to_contour(masks[0], 128), cut_band=0)
+    with_cut = Tracker(mask_to_contour(masks[0], 128))
+    for frame in frames:
+        a, b = chain_only.step(frame), with_cut.step(frame)
+    last = masks[-1]
+    iou_chain = mask_iou(contour_to_mask(a.nodes, last.shape), last)
+    iou_cut = mask_iou(contour_to_mask(b.nodes, last.shape), last)
+    assert iou_cut >= 0.93
+    assert iou_cut > iou_chain
