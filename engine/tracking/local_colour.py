@@ -119,42 +119,43 @@ class LocalColour:
 
     def probability(
         self,
-        image: NDArray[np.uint8],
+        region: NDArray[np.uint8],
         origin: tuple[int, int],
         nodes: NDArray[np.float64],
         fallback: NDArray[np.float32],
         wanted: NDArray[np.uint8],
+        *,
+        scale: int = 1,
     ) -> NDArray[np.float32]:
-        """p(object) over a region, the windows riding on ``nodes`` (the predicted contour).
+        """p(object) over a region of the frame, the windows riding on ``nodes``.
 
         Parameters
         ----------
-        image : numpy.ndarray
-            The frame.
+        region : numpy.ndarray
+            The region of the frame (BGR or grey), possibly shrunk by ``scale``.
         origin : tuple of int
-            ``(x, y)`` of the region's top-left pixel; the region has
-            ``fallback``'s shape.
+            ``(x, y)`` of the region's top-left pixel in the frame.
         nodes : numpy.ndarray
-            (N, 2) ``[x, y]`` contour the windows are centred on.
+            (N, 2) ``[x, y]`` frame pixels: the contour the windows are
+            centred on (the predicted one).
         fallback : numpy.ndarray
-            The global model's p(object) over the region, used where no
-            window knows better.
+            The global model's p(object) over the region (its shape), used
+            where no window knows better.
         wanted : numpy.ndarray
             uint8, 1 where p is needed (elsewhere ``fallback`` is returned).
+        scale : int
+            The region is the frame's shrunk by this factor.
         """
         from engine.tracking._cut_kernels import local_probability
 
-        if len(nodes) != self.nodes or bin_count(image) != self.object_counts.shape[1]:
+        if len(nodes) != self.nodes or bin_count(region) != self.object_counts.shape[1]:
             return fallback
-        x0, y0 = origin
-        h, w = fallback.shape
-        centres = np.round(nodes[window_nodes(len(nodes))] - [x0, y0]).astype(np.int64)
-        bins = colour_bins(image[y0 : y0 + h, x0 : x0 + w])
+        points = (nodes[window_nodes(len(nodes))] - np.asarray(origin) + 0.5) / scale - 0.5
         result: NDArray[np.float32] = local_probability(
-            bins,
+            colour_bins(region),
             wanted,
-            centres,
-            self.half,
+            np.round(points).astype(np.int64),
+            max(1, round(self.half / scale)),
             self.object_counts,
             self.background_counts,
             TRUST,

@@ -114,30 +114,30 @@ class BandCut:
         h, w = maps.probability.shape
         if h < 3 or w < 3:
             return None
-        inside = (contour_to_mask(refined - [x0, y0], (h, w)) > 0).astype(np.uint8)
+        scale = _scale(refined, self.band)
+        region = image[y0 : y0 + h, x0 : x0 + w]
+        probability, observed = maps.probability, maps.observed
+        if scale > 1:  # a large object: the whole cut at half resolution
+            small = (max(3, -(-w // scale)), max(3, -(-h // scale)))
+            region = _shrink(region, small)
+            probability = _shrink(probability, small)
+            observed = None if observed is None else _shrink(observed, small)
+        points = (refined - [x0, y0] + 0.5) / scale - 0.5
+        inside = (contour_to_mask(points, region.shape) > 0).astype(np.uint8)
         if not inside.any():
             return None
-        wanted = (np.abs(_signed_distance(inside)) <= self.band).astype(np.uint8)
-        probability = maps.probability
+        distance = _signed_distance(inside)
+        band = self.band / scale
         if self._windows is not None:
-            local = self._windows.probability(image, (x0, y0), predicted, probability, wanted)
-            # occluded pixels stay neutral, as the cue stage made them
-            if maps.observed is not None:
-                local = np.where(probability != maps.observed, probability, local)
-            probability = np.asarray(local, dtype=np.float32)
-        region = image[y0 : y0 + h, x0 : x0 + w]
-        scale = _scale(refined, self.band)
-        if scale > 1:
-            small = (max(3, -(-w // scale)), max(3, -(-h // scale)))
-            region = np.asarray(cv2.resize(region, small, interpolation=cv2.INTER_AREA), np.uint8)
-            probability = np.asarray(
-                cv2.resize(probability, small, interpolation=cv2.INTER_AREA), np.float32
+            wanted = (np.abs(distance) <= band).astype(np.uint8)
+            local = self._windows.probability(
+                region, (x0, y0), predicted, probability, wanted, scale=scale
             )
-            points = (refined - [x0, y0] + 0.5) / scale - 0.5
-            inside = (contour_to_mask(points, region.shape) > 0).astype(np.uint8)
-            if not inside.any():
-                return None
-        seg = _cut(_signed_distance(inside), self.band / scale, region, probability, scale)
+            # occluded pixels stay neutral, as the cue stage made them
+            if observed is not None:
+                local = np.where(probability != observed, probability, local)
+            probability = np.asarray(local, dtype=np.float32)
+        seg = _cut(distance, band, region, probability, scale)
         found = _largest_piece(seg, inside, len(refined))
         if found is None:
             return None
@@ -156,6 +156,11 @@ class BandCut:
         if windows is not None:
             restored._windows = LocalColour.from_state(windows)
         return restored
+
+
+def _shrink(image: NDArray[Any], size: tuple[int, int]) -> NDArray[Any]:
+    """``image`` resized to ``size`` (width, height) by area averaging, same dtype."""
+    return np.asarray(cv2.resize(image, size, interpolation=cv2.INTER_AREA), dtype=image.dtype)
 
 
 def _signed_distance(inside: NDArray[np.uint8]) -> NDArray[np.float32]:
