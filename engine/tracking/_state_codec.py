@@ -1,9 +1,11 @@
-"""Compact, validated encodings of the tracker's arrays for its JSON state."""
+"""Compact, validated encodings of the tracker's arrays for its JSON state, and old states."""
 
 from __future__ import annotations
 
 import base64
 import zlib
+from collections.abc import Mapping
+from typing import Any
 
 import cv2
 import numpy as np
@@ -47,3 +49,34 @@ def unpack_image(text: str) -> NDArray[np.uint8]:
     if image is None:
         raise ValueError("image does not decode")
     return np.asarray(image, dtype=np.uint8)
+
+
+def count(value: Any) -> int:
+    """A non-negative integer from a state, or ValueError."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f"expected a count; got {value!r}")
+    return value
+
+
+def from_version_1(state: Mapping[str, Any]) -> dict[str, Any]:
+    """A version-1 state (the default stages' state at the top level) as version 2."""
+    model, previous = state.get("model"), state.get("previous")
+    stages = None
+    if model is not None and previous is not None:
+        stages = {
+            "motion": {"kind": "flow-motion", "features": state.get("features")},
+            "appearance": {
+                "kind": "colour-histogram",
+                "object": model["object"],
+                "background": model["background"],
+            },
+            "cues": {"kind": "region-edge-cues", "memory": state.get("probability")},
+        }
+    return {
+        "version": 2,
+        "nodes": state["nodes"],
+        "options": state["options"],
+        "frame_index": state["frame_index"],
+        "previous": previous if stages is not None else None,
+        "stages": stages,
+    }

@@ -28,6 +28,7 @@ _NUMBER_BOUNDS: dict[str, float] = {
     "distance_penalty": math.inf,
     "flow_stiffness": 1e6,
     "learning_rate": 1.0,
+    "reacquire_above": 1.0,
 }
 
 
@@ -89,6 +90,13 @@ class TrackerOptions:
         turns it off (default 8: cross-validated on the thirty training
         sequences against 6 and 12; the most a boundary should move in one
         frame once the motion is compensated).
+    reacquire_above : float
+        When a frame does not end ``tracking``, the tracker searches a
+        growing window for the object's remembered shape
+        (:mod:`engine.tracking.reacquisition`) and moves there if the
+        contour found reaches this confidence (in [0, 1]; 1 turns the search
+        off; default 0.55: cross-validated on the thirty training sequences
+        against 0.445 and 0.65).
 
     Raises
     ------
@@ -109,6 +117,7 @@ class TrackerOptions:
     flow_stiffness: float = 20.0
     occlusion: bool = True
     cut_band: int = 8
+    reacquire_above: float = 0.55
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:

@@ -27,27 +27,43 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 from __future__ import annotations
 
 import binascii
-import contextlib
+import copy
 import dataclasses
 import zlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from engine.geometry import as_nodes, resample
+from engine.tracking._frames import as_frame as _as_frame
+from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
+from engine.tracking._state_codec import count as _count
+from engine.tracking._state_codec import from_version_1 as _from_version_1
 from engine.tracking._state_codec import pack_image, unpack_image
 from engine.tracking.appearance import ColourHistogram
-from engine.tracking.confidence import Status, calibrated, evidence, status_of
+from engine.tracking.confidence import (
+    TRACKING_FROM,
+    Status,
+    calibrated,
+    evidence,
+    status_of,
+)
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
-from engine.tracking.refinement import refine
+from engine.tracking.reacquisition import search_reach, search_shape
+from engine.tracking.refinement import Refinement, refine
 from engine.tracking.segmentation import BandCut
-from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel, Segmentation
+from engine.tracking.stages import (
+    AppearanceModel,
+    BoundaryCues,
+    MotionModel,
+    Prediction,
+    Segmentation,
+)
 from engine.tracking.validity import valid_contour
 
 __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
@@ -66,6 +82,23 @@ LEARN_ABOVE = 0.5
 """Only frames whose learning signal is at least this teach the appearance
 model, so that a lost or occluded object does not teach it the background."""
 STAGES = ("motion", "appearance", "cues", "segmentation")
+REACQUIRE_MARGIN = 0.05
+"""A re-acquired contour must beat the local track's confidence by this much:
+of two near-equal readings, the one that did not jump wins."""
+PROBATION = 2
+"""A re-acquired contour is reported ``uncertain`` for its first 2 frames: a
+jump is right only if the object is then followed from there."""
+UNCONFIRMED = TRACKING_FROM - 1e-3
+"""The confidence reported while on probation: just below ``tracking``."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Attempt:
+    """One way of tracking the frame: the refinement, the final contour and its confidence."""
+
+    refinement: Refinement
+    nodes: NDArray[np.float64]
+    confidence: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,42 +127,6 @@ class TrackResult:
     converged: bool
     confidence: float
     status: Status = "tracking"
-
-
-@contextlib.contextmanager
-def _repeatable_opencv() -> Iterator[None]:
-    """OpenCV without its IPP fast paths, for this thread, while tracking.
-
-    Some IPP kernels round differently with memory alignment and thread count,
-    so the same frames could track a little differently from run to run (and
-    between the library and the service).  Costs about 7 % of a frame's time;
-    the setting is thread-local and restored afterwards.
-    """
-    previous = cv2.ipp.useIPP()
-    cv2.ipp.setUseIPP(False)
-    try:
-        yield
-    finally:
-        cv2.ipp.setUseIPP(previous)
-
-
-def _as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-    """Validate a frame; return it as (BGR or grey image, grey image)."""
-    if not isinstance(frame, np.ndarray):
-        raise ValueError(f"frame must be a numpy array; got {type(frame).__name__}")
-    if frame.dtype != np.uint8:
-        raise ValueError(f"frame must be uint8 (as OpenCV decodes images); got {frame.dtype}")
-    if frame.size == 0:
-        raise ValueError(f"frame is empty: shape {frame.shape}")
-    if frame.ndim == 3 and frame.shape[2] == 1:
-        frame = frame[..., 0]
-    if frame.ndim == 2:
-        grey = np.ascontiguousarray(frame)
-        return grey, grey
-    if frame.ndim == 3 and frame.shape[2] in (3, 4):
-        colour = np.ascontiguousarray(frame[..., :3])
-        return colour, np.asarray(cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
-    raise ValueError(f"frame must be H x W grey or H x W x 3 BGR; got shape {frame.shape}")
 
 
 class Tracker:
@@ -203,6 +200,9 @@ class Tracker:
         # the previous grey frame (None: the next frame starts the track)
         self._previous: NDArray[np.uint8] | None = None
         self.frame_index = -1
+        self._misses: int = 0  # frames in a row not tracking
+        self._probation: int = 0  # frames left to report a re-acquired contour uncertain
+        self._shape: NDArray[np.float64] = self._nodes  # the contour of the last tracking frame
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -222,6 +222,7 @@ class Tracker:
         self._nodes = self._initial(nodes)
         self._previous = None
         self.motion.reset()
+        self._forget_search()
 
     def step(self, frame: NDArray[np.uint8]) -> TrackResult:
         """Track into the next frame.
@@ -260,18 +261,29 @@ class Tracker:
             frame_index=self.frame_index,
             object_weight=self.cues.object_weight,
         )
-        maps = self.cues.maps(image, grey, prediction, self.appearance)
-        refinement = refine(
-            maps, grey.shape, prediction.nodes, options=self.options, previous_nodes=self._nodes
-        )
-        nodes = refinement.nodes
-        cut = self.segmentation.segment(image, maps, prediction.nodes, nodes)
-        if cut is not None and valid_contour(cut, grey.shape, self._nodes):
-            nodes = cut
+        cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
+        attempt = self._attempt(image, grey, prediction, self.cues)
+        visible = self._visible(grey)
+        if attempt.confidence < TRACKING_FROM and visible:
+            self._misses += 1
+            retry = self._search(image, grey, prediction)
+            if retry is not None:
+                other = self._attempt(image, grey, retry, cues)
+                margin = attempt.confidence + REACQUIRE_MARGIN
+                if other.confidence >= self.options.reacquire_above and other.confidence > margin:
+                    prediction, attempt, self.cues = retry, other, cues
+                    self.motion.reset()
+                    self._probation = PROBATION + 1
+        refinement, nodes, confidence = attempt.refinement, attempt.nodes, attempt.confidence
+        if self._probation > 0:
+            self._probation -= 1
+            confidence = min(confidence, UNCONFIRMED)
+        elif confidence >= TRACKING_FROM:
+            self._misses = 0
+            self._shape = nodes
         support = MOTION_SHARE * prediction.support
         signal = support + (1 - MOTION_SHARE) * refinement.contrast
-        confidence = calibrated(evidence(maps, nodes, refinement.converged))
-        if not self._visible(grey):
+        if not visible:
             signal = confidence = 0.0
         self._nodes = nodes
         self._previous = grey
@@ -280,14 +292,54 @@ class Tracker:
         self.segmentation.learn(image, self._nodes)
         return self._result(refinement.iterations, refinement.converged, confidence)
 
+    def _attempt(
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        prediction: Prediction,
+        cues: BoundaryCues,
+    ) -> _Attempt:
+        """Cue maps, refinement and cut around ``prediction``; the confidence of the result."""
+        maps = cues.maps(image, grey, prediction, self.appearance)
+        refinement = refine(
+            maps, grey.shape, prediction.nodes, options=self.options, previous_nodes=self._nodes
+        )
+        nodes = refinement.nodes
+        cut = self.segmentation.segment(image, maps, prediction.nodes, nodes)
+        if cut is not None and valid_contour(cut, grey.shape, self._nodes):
+            nodes = cut
+        confidence = calibrated(evidence(maps, nodes, refinement.converged))
+        return _Attempt(refinement, nodes, confidence)
+
+    def _search(
+        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], prediction: Prediction
+    ) -> Prediction | None:
+        """The remembered shape where the appearance says the object is (None: nowhere new)."""
+        if self.options.reacquire_above >= 1.0:
+            return None
+        reach = search_reach(self._misses)
+        found = search_shape(image, prediction.nodes, self._shape, self.appearance, reach)
+        if found is None or not valid_contour(found, grey.shape, found, check_crossing=False):
+            return None
+        matrix = prediction.matrix.copy()
+        matrix[:, 2] += found.mean(axis=0) - prediction.nodes.mean(axis=0)
+        return Prediction(found, found, matrix, prediction.support)
+
     def _start(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
         """The first frame of a track: every stage learns the object anew."""
         self._previous = grey
+        self._forget_search()
         self.motion.reset()
         self.appearance.fit(image, self._nodes)
         self.cues.start(image, self._nodes, self.appearance)
         self.segmentation.start(image, self._nodes)
         return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
+
+    def _forget_search(self) -> None:
+        """No frames missed; the current contour is the shape to look for."""
+        self._misses = 0
+        self._probation = 0
+        self._shape = self._nodes
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
         status = status_of(confidence)
@@ -322,6 +374,13 @@ class Tracker:
             "stages": None
             if previous is None
             else {name: getattr(self, name).to_state() for name in STAGES},
+            "search": None
+            if previous is None
+            else {
+                "misses": self._misses,
+                "probation": self._probation,
+                "shape": self._shape.tolist(),
+            },
         }
 
     @classmethod
@@ -341,8 +400,9 @@ class Tracker:
         state : dict
             A snapshot of version 3, 2 (before the segmentation stage) or 1
             (before the stages); the older ones continue exactly as the
-            tracker that wrote them, without the segmentation stage
-            (``cut_band`` 0) unless their options ask for it.
+            tracker that wrote them, without the segmentation stage and the
+            search (``cut_band`` 0, ``reacquire_above`` 1) unless their
+            options ask for them.
         motion, appearance, cues, segmentation : optional
             Stages built like those of the tracker that wrote ``state`` (the
             defaults when it used the defaults); they get the state's.
@@ -362,6 +422,7 @@ class Tracker:
             if state["version"] < STATE_VERSION:
                 # written before the segmentation stage: continue as the tracker that wrote it
                 options.setdefault("cut_band", 0)
+                options.setdefault("reacquire_above", 1.0)
             tracker = cls(
                 state["nodes"],
                 motion=motion,
@@ -380,31 +441,12 @@ class Tracker:
                 if "segmentation" in stages:  # not in version 2
                     segmented = tracker.segmentation.from_state(stages["segmentation"])
                     tracker.segmentation = segmented
+                search = state.get("search")
+                if search is not None:
+                    tracker._misses = _count(search["misses"])
+                    tracker._probation = _count(search["probation"])
+                    tracker._shape = as_nodes(search["shape"])
                 tracker._previous = unpack_image(previous)
         except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
             raise ValueError(f"malformed tracker state: {exc}") from None
         return tracker
-
-
-def _from_version_1(state: Mapping[str, Any]) -> dict[str, Any]:
-    """A version-1 state (the default stages' state at the top level) as version 2."""
-    model, previous = state.get("model"), state.get("previous")
-    stages = None
-    if model is not None and previous is not None:
-        stages = {
-            "motion": {"kind": "flow-motion", "features": state.get("features")},
-            "appearance": {
-                "kind": "colour-histogram",
-                "object": model["object"],
-                "background": model["background"],
-            },
-            "cues": {"kind": "region-edge-cues", "memory": state.get("probability")},
-        }
-    return {
-        "version": 2,
-        "nodes": state["nodes"],
-        "options": state["options"],
-        "frame_index": state["frame_index"],
-        "previous": previous if stages is not None else None,
-        "stages": stages,
-    }

@@ -1,0 +1,49 @@
+"""Frame validation and repeatable OpenCV for :class:`engine.tracking.Tracker`."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["as_frame", "repeatable_opencv"]
+
+
+@contextlib.contextmanager
+def repeatable_opencv() -> Iterator[None]:
+    """OpenCV without its IPP fast paths, for this thread, while tracking.
+
+    Some IPP kernels round differently with memory alignment and thread count,
+    so the same frames could track a little differently from run to run (and
+    between the library and the service).  Costs about 7 % of a frame's time;
+    the setting is thread-local and restored afterwards.
+    """
+    previous = cv2.ipp.useIPP()
+    cv2.ipp.setUseIPP(False)
+    try:
+        yield
+    finally:
+        cv2.ipp.setUseIPP(previous)
+
+
+def as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Validate a frame; return it as (BGR or grey image, grey image)."""
+    if not isinstance(frame, np.ndarray):
+        raise ValueError(f"frame must be a numpy array; got {type(frame).__name__}")
+    if frame.dtype != np.uint8:
+        raise ValueError(f"frame must be uint8 (as OpenCV decodes images); got {frame.dtype}")
+    if frame.size == 0:
+        raise ValueError(f"frame is empty: shape {frame.shape}")
+    if frame.ndim == 3 and frame.shape[2] == 1:
+        frame = frame[..., 0]
+    if frame.ndim == 2:
+        grey = np.ascontiguousarray(frame)
+        return grey, grey
+    if frame.ndim == 3 and frame.shape[2] in (3, 4):
+        colour = np.ascontiguousarray(frame[..., :3])
+        return colour, np.asarray(cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+    raise ValueError(f"frame must be H x W grey or H x W x 3 BGR; got shape {frame.shape}")

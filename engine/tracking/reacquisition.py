@@ -1,0 +1,113 @@
+"""Re-acquisition: look for a lost object by its appearance, beyond the local window.
+
+When a frame does not end ``tracking`` (the object moved further than the
+motion model could follow, was hidden, or the contour slid onto something
+else), the tracker searches a window around the predicted contour that
+grows with each further frame without tracking (1, 2, 4, 8 object sizes:
+up to the whole frame) for the place where the remembered shape (the
+contour of the last ``tracking`` frame) fits p(object) best: the
+correlation of p(object) - 1/2 with a template that is +1/area inside the
+shape and -1/area in a ring around it, less a mild penalty on the distance
+from the prediction.  The tracker then refines and cuts there as usual and
+keeps the result only if its confidence is both high
+(:attr:`TrackerOptions.reacquire_above`) and clearly above the local
+track's.  Coordinates are ``[x, y]`` pixels (x = column, y = row).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import contour_to_mask
+from engine.tracking.stages import AppearanceModel, Frame
+
+__all__ = ["MAX_REACH", "search_reach", "search_shape"]
+
+MAX_REACH = 8.0
+"""The window grows to 8 object sizes around the prediction (a 480p frame
+for most objects): doubling from 1 size, it is reached after four frames."""
+RING = 3
+"""Width (pixels of the search grid) of the ring the template wants background in."""
+DISTANCE_PENALTY = 0.05
+"""Score lost per squared object size of distance from the prediction: of
+two equally good places the nearer wins; a place clearly better wins anyway."""
+MIN_REACH = 16.0
+"""The window reaches at least 16 pixels beyond a small object's box."""
+SMALL = 40.0
+"""Objects under 40 pixels across are searched at full resolution, larger ones at half."""
+
+
+def search_reach(misses: int) -> float:
+    """Window reach in object sizes after ``misses`` frames in a row without tracking (>= 1)."""
+    return float(min(2.0 ** (max(misses, 1) - 1), MAX_REACH))
+
+
+def search_shape(
+    image: Frame,
+    predicted: NDArray[np.float64],
+    shape: NDArray[np.float64],
+    appearance: AppearanceModel,
+    reach: float,
+) -> NDArray[np.float64] | None:
+    """Where ``shape`` fits the object's appearance best near ``predicted``.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        The frame.
+    predicted : numpy.ndarray
+        (N, 2) ``[x, y]`` predicted contour: the window is centred on it.
+    shape : numpy.ndarray
+        (M, 2) ``[x, y]`` remembered contour; only its shape counts (it is
+        moved to the prediction's centre first).
+    appearance : AppearanceModel
+        Gives p(object) of the window.
+    reach : float
+        The window reaches this many object sizes beyond the shape's box.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        ``shape`` translated to the best place, or None when the window or
+        the shape is degenerate.
+    """
+    height, width = image.shape[:2]
+    placed = shape - shape.mean(axis=0) + predicted.mean(axis=0)
+    lo, hi = placed.min(axis=0), placed.max(axis=0)
+    size = float(max(hi - lo))
+    margin = max(MIN_REACH, reach * size)
+    x0, y0 = int(max(0, np.floor(lo[0] - margin))), int(max(0, np.floor(lo[1] - margin)))
+    x1 = int(min(width, np.ceil(hi[0] + margin)))
+    y1 = int(min(height, np.ceil(hi[1] + margin)))
+    if x1 - x0 < 8 or y1 - y0 < 8 or size <= 0:
+        return None
+    f = 1.0 if size < SMALL else 0.5
+    region = np.ascontiguousarray(image[y0:y1, x0:x1])
+    if f != 1.0:
+        region = np.asarray(
+            cv2.resize(region, None, fx=f, fy=f, interpolation=cv2.INTER_AREA), np.uint8
+        )
+    p = appearance.probability(region) - np.float32(0.5)
+    corner = np.floor(lo).astype(int) - 2 * RING - 2
+    th = int(np.ceil((hi[1] - corner[1]) * f)) + RING + 2
+    tw = int(np.ceil((hi[0] - corner[0]) * f)) + RING + 2
+    if th > p.shape[0] or tw > p.shape[1]:
+        return None
+    mask = contour_to_mask((placed - corner) * f, (th, tw)) > 0
+    ring = cv2.dilate(mask.astype(np.uint8), np.ones((2 * RING + 1,) * 2, np.uint8)) > 0
+    ring &= ~mask
+    if not mask.any() or not ring.any():
+        return None
+    template = np.zeros((th, tw), np.float32)
+    template[mask] = 1.0 / np.count_nonzero(mask)
+    template[ring] = -1.0 / np.count_nonzero(ring)
+    score = cv2.matchTemplate(np.ascontiguousarray(p, np.float32), template, cv2.TM_CCORR)
+    cx, cy = (corner[0] - x0) * f, (corner[1] - y0) * f
+    ys, xs = np.mgrid[0 : score.shape[0], 0 : score.shape[1]]
+    far = ((xs - cx) ** 2 + (ys - cy) ** 2) / max((f * size) ** 2, 1.0)
+    best = np.unravel_index(int(np.argmax(score - DISTANCE_PENALTY * far)), score.shape)
+    shift = np.array([best[1] - cx, best[0] - cy], dtype=np.float64) / f
+    result: NDArray[np.float64] = placed + shift
+    return result

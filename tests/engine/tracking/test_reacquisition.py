@@ -1,0 +1,106 @@
+"""Re-acquisition: a lost object is searched for by its appearance and its remembered shape."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou
+from engine.tracking import ColourHistogram, Tracker
+from engine.tracking.reacquisition import MAX_REACH, search_reach, search_shape
+
+U8 = NDArray[np.uint8]
+H, W, R = 240, 400, 22.0
+
+
+def scene(centre: tuple[float, float]) -> tuple[U8, U8]:
+    """A yellow disc on a textured blue-grey background; the frame and its mask."""
+    rng = np.random.default_rng(1)
+    noise = cv2.GaussianBlur(rng.normal(0, 40, (H, W)), (0, 0), 3)
+    background = np.stack([150 + noise, 120 + 0.5 * noise, 90 + 0.2 * noise], axis=-1)
+    mask = contour_to_mask(circle_nodes(centre, R, 360), (H, W))
+    frame = np.where(mask[..., None] > 0, [30, 200, 230], background)
+    return np.clip(frame, 0, 255).astype(np.uint8), mask
+
+
+def jumping(before: int = 4, after: int = 8) -> list[tuple[U8, U8]]:
+    """The disc still at x = 90, then 150 pixels to the right: far beyond any local search."""
+    return [scene((90.0, 120.0))] * before + [scene((240.0, 120.0))] * after
+
+
+def test_the_window_doubles_up_to_its_limit() -> None:
+    assert [search_reach(k) for k in (1, 2, 3, 4, 5, 9)] == [1, 2, 4, 8, 8, 8]
+    assert search_reach(0) == 1
+    assert MAX_REACH == 8
+
+
+def test_search_finds_the_shape_where_the_appearance_is() -> None:
+    image, _ = scene((90.0, 120.0))
+    shape = circle_nodes((90.0, 120.0), R, 128)
+    appearance = ColourHistogram(15, 0.05)
+    appearance.fit(image, shape)
+    moved, _ = scene((170.0, 150.0))
+    near = search_shape(moved, shape, shape, appearance, reach=0.5)
+    far = search_shape(moved, shape, shape, appearance, reach=4.0)
+    assert near is not None
+    assert far is not None
+    assert np.hypot(*(far.mean(axis=0) - [170.0, 150.0])) < 3.0
+    assert np.hypot(*(near.mean(axis=0) - [170.0, 150.0])) > 20.0  # out of its reach
+
+
+def test_search_gives_up_on_a_degenerate_window() -> None:
+    image, _ = scene((90.0, 120.0))
+    appearance = ColourHistogram(15, 0.05)
+    shape = circle_nodes((90.0, 120.0), R, 128)
+    appearance.fit(image, shape)
+    assert search_shape(image[:6, :6], shape, shape, appearance, reach=1.0) is None
+
+
+def test_the_tracker_reacquires_an_object_that_jumped() -> None:
+    frames = jumping()
+    searching = Tracker(circle_nodes((90.0, 120.0), R, 128))
+    local_only = Tracker(circle_nodes((90.0, 120.0), R, 128), reacquire_above=1.0)
+    found, statuses = [], []
+    for frame, mask in frames:
+        a, b = searching.step(frame), local_only.step(frame)
+        found.append(mask_iou(contour_to_mask(a.nodes, mask.shape), mask))
+        statuses.append(a.status)
+    last = frames[-1][1]
+    assert mask_iou(contour_to_mask(b.nodes, last.shape), last) < 0.2  # lost for good
+    assert min(found[-3:]) >= 0.9  # found again, and followed
+    assert statuses[4] != "tracking"  # the jump itself is not reported as tracked
+    assert statuses[-1] == "tracking"
+
+
+def test_a_state_taken_mid_search_resumes_exactly() -> None:
+    frames = jumping()
+    tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
+    for frame, _ in frames[:6]:
+        tracker.step(frame)
+    state = copy.deepcopy(tracker.to_state())
+    assert state["search"] is not None
+    restored = Tracker.from_state(state)
+    for frame, _ in frames[6:]:
+        a, b = tracker.step(frame), restored.step(frame)
+        np.testing.assert_array_equal(a.nodes, b.nodes)
+        assert (a.confidence, a.status) == (b.confidence, b.status)
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("misses", -1), ("probation", 1.5), ("probation", True), ("shape", [[math.nan, 0.0]] * 4)],
+)
+def test_a_malformed_search_state_is_refused(key: str, value: object) -> None:
+    frames = jumping()
+    tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
+    for frame, _ in frames[:3]:
+        tracker.step(frame)
+    state = tracker.to_state()
+    state["search"][key] = value
+    with pytest.raises(ValueError, match="malformed tracker state"):
+        Tracker.from_state(state)
