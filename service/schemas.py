@@ -32,6 +32,12 @@ class Circle(BaseModel):
     radius: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]
     count: Annotated[int, Field(ge=3, description="number of nodes")] = 64
 
+    @model_validator(mode="after")
+    def _inside_limits(self) -> Circle:
+        if max(abs(c) for c in self.center) + self.radius > LIMIT:
+            raise ValueError(f"the circle must lie within +-{LIMIT:g} pixels")
+        return self
+
 
 class SessionCreate(BaseModel):
     """``POST /v1/sessions``: the initial contour and the model."""

@@ -127,6 +127,15 @@ def test_create_with_circle(client: TestClient) -> None:
     assert len(create(client)["nodes"]) == 64  # default count
 
 
+def test_a_circle_reaching_beyond_the_coordinate_limit_is_a_422(client: TestClient) -> None:
+    """Found by the schema fuzzer: the nodes would exceed the limit the responses promise."""
+    response = client.post(
+        "/v1/sessions", json={"circle": {"center": [0.0, 999999101.0], "radius": 900.0}}
+    )
+    assert response.status_code == 422
+    assert "within" in response.text
+
+
 def test_session_ids_are_unguessable(client: TestClient) -> None:
     ids = [create(client)["id"] for _ in range(20)]
     assert len(set(ids)) == len(ids)
