@@ -207,13 +207,16 @@ def boundary_search(
     distance_penalty: float,
     offset: NDArray[np.float64],
     strength: NDArray[np.float64],
+    relative: NDArray[np.float64],
 ) -> float:
     """Per-node best object-to-background split along the normal (engine.tracking.boundary).
 
     ``nodes`` are in the maps' pixel coordinates; ``edges`` has one pixel
     per ``edge_step`` (1 or 2) of them (see ``Maps.edge_step``).  Fills
     ``offset`` and ``strength``; returns the mean inside-minus-outside
-    probability.
+    probability.  ``relative[n]`` in [0, 1] is how far node n compares the two
+    sides with each other rather than each with 1/2 (1: a profile that is
+    object-like all along gives no pull; see engine.tracking.holding).
     """
     # edge pixel u covers map pixels step u .. step u + step - 1
     to_edge = 1.0 / edge_step
@@ -239,6 +242,11 @@ def boundary_search(
             if j >= radius:
                 outside += p
         contrast += (inside - outside) / (radius + 1)
+        if relative[n] > 0.0:
+            level = relative[n] * total / k
+            total -= level * k
+            for j in range(k):
+                q[j] -= level
         best = -1e300
         best_j = 0
         before = 0.0
@@ -269,6 +277,7 @@ def contour_pull(
     edge_weight: float,
     distance_penalty: float,
     pull: NDArray[np.float64],
+    relative: NDArray[np.float64],
 ) -> float:
     """:func:`boundary_search` along the outward normals, as pulls ``strength * offset * normal``.
 
@@ -290,6 +299,7 @@ def contour_pull(
         distance_penalty,
         offset,
         strength,
+        relative,
     )
     for i in range(n):
         pull[i, 0] = strength[i] * offset[i] * normals[i, 0]

@@ -32,6 +32,7 @@ def refine_chain(
     tolerance: float,
     solver: NDArray[np.float64],
     x: NDArray[np.float64],
+    relative: NDArray[np.float64],
 ) -> tuple[int, bool, float]:
     """Iterate X = X0 + U, (I + K) U = (X - X0) + pull(X), on a closed chain.
 
@@ -56,6 +57,9 @@ def refine_chain(
         :func:`engine.physics.recursive.kernel_arguments` (closed chain of N nodes).
     x : numpy.ndarray
         (N, 2) output: the contour after the last accepted iteration.
+    relative : numpy.ndarray
+        (N,) per node, in [0, 1]: how far its region cue compares the two sides
+        with each other (:mod:`engine.tracking.holding`).
 
     Returns
     -------
@@ -80,7 +84,16 @@ def refine_chain(
             local[i, 0] = x[i, 0] - origin[0]
             local[i, 1] = x[i, 1] - origin[1]
         contrast = contour_pull(
-            prob, edges, edge_step, local, radii[k], weights[0], weights[1], weights[2], pull
+            prob,
+            edges,
+            edge_step,
+            local,
+            radii[k],
+            weights[0],
+            weights[1],
+            weights[2],
+            pull,
+            relative,
         )
         # fixed point: K (X - X0) = pull, the chain bends away from the
         # predicted shape only as far as the image forces pay for it

@@ -58,6 +58,14 @@ def count(value: Any) -> int:
     return value
 
 
+def factors(values: Any, count: int) -> NDArray[np.float64]:
+    """``count`` numbers in [0, 1] from a state, or ValueError."""
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.shape != (count,) or not np.isfinite(arr).all() or (arr < 0).any() or (arr > 1).any():
+        raise ValueError(f"expected {count} numbers in [0, 1]")
+    return arr
+
+
 def from_version_1(state: Mapping[str, Any]) -> dict[str, Any]:
     """A version-1 state (the default stages' state at the top level) as version 2."""
     model, previous = state.get("model"), state.get("previous")

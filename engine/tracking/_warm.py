@@ -29,8 +29,10 @@ def warm_up() -> None:
     image.occluded(
         maps, np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint8), np.zeros((2, 3)), 0.35, 166
     )
-    image.boundary_search(maps, maps, 1, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4))
-    image.contour_pull(maps, maps, 1, square, 1, 1.0, 0.5, 0.1, np.empty((4, 2)))
+    image.boundary_search(
+        maps, maps, 1, square, square, 1, 1.0, 0.5, 0.1, np.empty(4), np.empty(4), np.zeros(4)
+    )
+    image.contour_pull(maps, maps, 1, square, 1, 1.0, 0.5, 0.1, np.empty((4, 2)), np.zeros(4))
     refine_chain(
         maps,
         maps,
@@ -42,4 +44,5 @@ def warm_up() -> None:
         0.1,
         np.asarray(kernel_arguments(1.0, 4, True), np.float64),
         np.empty((4, 2)),
+        np.zeros(4),
     )

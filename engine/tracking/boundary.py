@@ -88,5 +88,6 @@ def find_boundary(
         float(distance_penalty),
         offset,
         strength,
+        np.zeros(len(nodes)),
     )
     return BoundaryEvidence(offset, strength, float(contrast))

@@ -29,6 +29,7 @@ _NUMBER_BOUNDS: dict[str, float] = {
     "flow_stiffness": 1e6,
     "learning_rate": 1.0,
     "reacquire_above": 1.0,
+    "hold_below": 1.0,
 }
 
 
@@ -97,6 +98,12 @@ class TrackerOptions:
         contour found reaches this confidence (in [0, 1]; 1 turns the search
         off; default 0.55: cross-validated on the thirty training sequences
         against 0.445 and 0.65).
+    hold_below : float
+        Nodes whose two sides differ by less than this in p(object) on the
+        first frame hold the shape where the image shows no step
+        (:mod:`engine.tracking.holding`; in [0, 1], 0 turns it off; default
+        0.2: cross-validated on the thirty training sequences against 0, 0.4
+        and 0.6, chosen in all five folds).
 
     Raises
     ------
@@ -118,6 +125,7 @@ class TrackerOptions:
     occlusion: bool = True
     cut_band: int = 8
     reacquire_above: float = 0.55
+    hold_below: float = 0.2
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:

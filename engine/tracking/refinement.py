@@ -68,6 +68,7 @@ def refine(
     *,
     options: TrackerOptions,
     previous_nodes: NDArray[np.float64],
+    hold: NDArray[np.float64] | None = None,
 ) -> Refinement:
     """Equilibrium of the chain around the predicted shape under image forces.
 
@@ -91,6 +92,10 @@ def refine(
     previous_nodes : numpy.ndarray
         (M, 2) ``[x, y]`` pixels, the contour in the previous frame: the
         reference of :func:`valid_contour` and the last-resort result.
+    hold : numpy.ndarray, optional
+        (N,) per node of ``rest``, in [0, 1]: how far the node holds its
+        place where both sides look alike (:mod:`engine.tracking.holding`);
+        None: 0 for every node.
 
     Returns
     -------
@@ -113,6 +118,7 @@ def refine(
         options.tolerance,
         np.asarray(kernel_arguments(options.stiffness, len(rest), True), dtype=np.float64),
         x,
+        np.zeros(len(rest)) if hold is None else np.ascontiguousarray(hold, dtype=np.float64),
     )
     out = resample(x, len(x))
     if not valid_contour(out, shape, previous_nodes):

@@ -41,6 +41,7 @@ from engine.geometry import as_nodes, resample
 from engine.tracking._frames import as_frame as _as_frame
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._state_codec import count as _count
+from engine.tracking._state_codec import factors as _factors
 from engine.tracking._state_codec import from_version_1 as _from_version_1
 from engine.tracking._state_codec import pack_image, unpack_image
 from engine.tracking.appearance import ColourHistogram
@@ -52,6 +53,8 @@ from engine.tracking.confidence import (
     status_of,
 )
 from engine.tracking.cues import RegionEdgeCues
+from engine.tracking.holding import carry, hold_factors, side_contrast
+from engine.tracking.maps import roi_box
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.reacquisition import search_reach, search_shape
@@ -203,6 +206,7 @@ class Tracker:
         self._misses: int = 0  # frames in a row not tracking
         self._probation: int = 0  # frames left to report a re-acquired contour uncertain
         self._shape: NDArray[np.float64] = self._nodes  # the contour of the last tracking frame
+        self._hold: NDArray[np.float64] = np.zeros(len(self._nodes))  # per node, holding.py
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -262,19 +266,22 @@ class Tracker:
             object_weight=self.cues.object_weight,
         )
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
-        attempt = self._attempt(image, grey, prediction, self.cues)
+        hold = self._hold
+        attempt = self._attempt(image, grey, prediction, self.cues, hold)
         visible = self._visible(grey)
         if attempt.confidence < TRACKING_FROM and visible:
             self._misses += 1
             retry = self._search(image, grey, prediction)
             if retry is not None:
-                other = self._attempt(image, grey, retry, cues)
+                moved = carry(self._hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
+                other = self._attempt(image, grey, retry, cues, moved)
                 margin = attempt.confidence + REACQUIRE_MARGIN
                 if other.confidence >= self.options.reacquire_above and other.confidence > margin:
-                    prediction, attempt, self.cues = retry, other, cues
+                    prediction, attempt, self.cues, hold = retry, other, cues, moved
                     self.motion.reset()
                     self._probation = PROBATION + 1
         refinement, nodes, confidence = attempt.refinement, attempt.nodes, attempt.confidence
+        self._hold = carry(hold, refinement.nodes, nodes)
         if self._probation > 0:
             self._probation -= 1
             confidence = min(confidence, UNCONFIRMED)
@@ -298,11 +305,17 @@ class Tracker:
         grey: NDArray[np.uint8],
         prediction: Prediction,
         cues: BoundaryCues,
+        hold: NDArray[np.float64],
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result."""
         maps = cues.maps(image, grey, prediction, self.appearance)
         refinement = refine(
-            maps, grey.shape, prediction.nodes, options=self.options, previous_nodes=self._nodes
+            maps,
+            grey.shape,
+            prediction.nodes,
+            options=self.options,
+            previous_nodes=self._nodes,
+            hold=hold,
         )
         nodes = refinement.nodes
         cut = self.segmentation.segment(image, maps, prediction.nodes, nodes)
@@ -333,6 +346,11 @@ class Tracker:
         self.appearance.fit(image, self._nodes)
         self.cues.start(image, self._nodes, self.appearance)
         self.segmentation.start(image, self._nodes)
+        _, (x0, y0, x1, y1) = roi_box(image.shape, self._nodes, self.options.search_radius)
+        contrast = side_contrast(
+            self.appearance.probability(image[y0:y1, x0:x1]), (x0, y0), self._nodes
+        )
+        self._hold = hold_factors(contrast, self.options.hold_below)
         return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
 
     def _forget_search(self) -> None:
@@ -340,6 +358,7 @@ class Tracker:
         self._misses = 0
         self._probation = 0
         self._shape = self._nodes
+        self._hold = np.zeros(len(self._nodes))
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
         status = status_of(confidence)
@@ -380,6 +399,7 @@ class Tracker:
                 "misses": self._misses,
                 "probation": self._probation,
                 "shape": self._shape.tolist(),
+                "hold": self._hold.tolist(),
             },
         }
 
@@ -423,6 +443,7 @@ class Tracker:
                 # written before the segmentation stage: continue as the tracker that wrote it
                 options.setdefault("cut_band", 0)
                 options.setdefault("reacquire_above", 1.0)
+                options.setdefault("hold_below", 0.0)
             tracker = cls(
                 state["nodes"],
                 motion=motion,
@@ -446,6 +467,7 @@ class Tracker:
                     tracker._misses = _count(search["misses"])
                     tracker._probation = _count(search["probation"])
                     tracker._shape = as_nodes(search["shape"])
+                    tracker._hold = _factors(search["hold"], len(tracker._nodes))
                 tracker._previous = unpack_image(previous)
         except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
             raise ValueError(f"malformed tracker state: {exc}") from None

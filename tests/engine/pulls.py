@@ -32,5 +32,6 @@ def boundary_pull(
         float(edge_weight),
         float(distance_penalty),
         pull,
+        np.zeros(len(local)),
     )
     return pull, float(contrast)

@@ -93,7 +93,15 @@ def test_a_state_taken_mid_search_resumes_exactly() -> None:
 
 @pytest.mark.parametrize(
     ("key", "value"),
-    [("misses", -1), ("probation", 1.5), ("probation", True), ("shape", [[math.nan, 0.0]] * 4)],
+    [
+        ("misses", -1),
+        ("probation", 1.5),
+        ("probation", True),
+        ("shape", [[math.nan, 0.0]] * 4),
+        ("hold", [0.5]),
+        ("hold", [2.0] * 128),
+        ("hold", "all"),
+    ],
 )
 def test_a_malformed_search_state_is_refused(key: str, value: object) -> None:
     frames = jumping()

@@ -78,6 +78,7 @@ def test_compiled_loop_equals_the_python_loop(
         tol,
         np.asarray(kernel_arguments(stiffness, count, True), np.float64),
         x,
+        np.zeros(count),
     )
     assert result[0] == it
     assert result[1] == converged
@@ -102,6 +103,7 @@ def test_non_finite_forces_stop_without_accepting_the_step(maps: Maps) -> None:
         0.05,
         solver,
         x,
+        np.zeros(32),
     )
     assert iterations == 1
     assert not converged

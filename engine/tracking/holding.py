@@ -1,0 +1,71 @@
+"""Holding the shape where the image says nothing: per-node boundary evidence, remembered.
+
+The region cue pulls a node towards the object-to-background split along its
+normal, judging each pixel against p(object) = 1/2; where the background next
+to the object has the object's very colour (camouflage, a shadow of the
+same tone), everything along the normal looks like object and the node is
+pulled outward, into the background, frame after frame.  A node that had no
+colour step across the contour on the first frame (where the contour is
+given, so known to be right) is marked: its region cue compares the two sides
+of each candidate split with each other instead (the profile's mean is taken
+off), which gives no pull along a profile without a step, so the chain holds
+it on the predicted shape; a real step within reach still pulls it.  The
+marks ride with the contour from frame to frame (nearest node).  Coordinates
+are ``[x, y]`` pixels (x = column, y = row).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import outward_normals
+
+__all__ = ["DEPTH", "carry", "hold_factors", "side_contrast"]
+
+DEPTH = 6
+"""Pixels sampled on each side of a node: beyond the contour's own mixed
+pixels, within the object's and the background's near surroundings."""
+
+
+def side_contrast(
+    probability: NDArray[np.float32], origin: tuple[int, int], nodes: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Mean p(object) over 1..:data:`DEPTH` pixels inside each node minus outside it.
+
+    ``probability`` covers the region whose top-left pixel is frame point
+    ``origin``; samples outside it count as 1/2.
+    """
+    normals = outward_normals(nodes)
+    local = nodes - np.asarray(origin, dtype=np.float64)
+    steps = np.arange(1, DEPTH + 1, dtype=np.float64)
+    h, w = probability.shape
+
+    def mean_at(sign: float) -> NDArray[np.float64]:
+        points = local[:, None, :] + sign * steps[None, :, None] * normals[:, None, :]
+        ij = np.round(points).astype(np.int64)
+        ok = (ij[..., 0] >= 0) & (ij[..., 0] < w) & (ij[..., 1] >= 0) & (ij[..., 1] < h)
+        values = np.full(ok.shape, 0.5)
+        values[ok] = probability[ij[..., 1][ok], ij[..., 0][ok]]
+        result: NDArray[np.float64] = values.mean(axis=1)
+        return result
+
+    return mean_at(-1.0) - mean_at(1.0)
+
+
+def hold_factors(contrast: NDArray[np.float64], below: float) -> NDArray[np.float64]:
+    """1 where the side contrast is 0 or less, falling linearly to 0 at ``below`` (0: none held)."""
+    if below <= 0:
+        return np.zeros(len(contrast))
+    return np.clip(1.0 - contrast / below, 0.0, 1.0)
+
+
+def carry(
+    values: NDArray[np.float64], source: NDArray[np.float64], target: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Per-node ``values`` of contour ``source`` moved to the nearest node of ``target``."""
+    if len(values) != len(source):
+        return np.zeros(len(target))
+    d = ((target[:, None, :] - source[None, :, :]) ** 2).sum(axis=2)
+    moved: NDArray[np.float64] = values[np.argmin(d, axis=1)]
+    return moved
