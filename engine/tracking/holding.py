@@ -66,6 +66,9 @@ def carry(
     """Per-node ``values`` of contour ``source`` moved to the nearest node of ``target``."""
     if len(values) != len(source):
         return np.zeros(len(target))
-    d = ((target[:, None, :] - source[None, :, :]) ** 2).sum(axis=2)
+    if target is source or np.array_equal(target, source):
+        return values.copy()
+    # |t - s|^2 up to the per-target constant |t|^2, as one matrix product
+    d = (source * source).sum(axis=1)[None, :] - 2.0 * (target @ source.T)
     moved: NDArray[np.float64] = values[np.argmin(d, axis=1)]
     return moved
