@@ -102,7 +102,7 @@ class TrackerOptions:
         Nodes whose two sides differ by less than this in p(object) on the
         first frame hold the shape where the image shows no step
         (:mod:`engine.tracking.holding`; in [0, 1], 0 turns it off; default
-        0.2: cross-validated on the thirty training sequences against 0, 0.4
+        0.4: cross-validated on the thirty training sequences against 0, 0.2
         and 0.6, chosen in all five folds).
 
     Raises
@@ -125,7 +125,7 @@ class TrackerOptions:
     occlusion: bool = True
     cut_band: int = 8
     reacquire_above: float = 0.55
-    hold_below: float = 0.2
+    hold_below: float = 0.4
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:

@@ -118,10 +118,11 @@ class BandCut:
         region = image[y0 : y0 + h, x0 : x0 + w]
         probability, observed = maps.probability, maps.observed
         if scale > 1:  # a large object: the whole cut at half resolution
-            small = (max(3, -(-w // scale)), max(3, -(-h // scale)))
-            region = _shrink(region, small)
-            probability = _shrink(probability, small)
-            observed = None if observed is None else _shrink(observed, small)
+            # an exact halving (even sides) takes OpenCV's fast area-averaging path
+            small = (w // scale, h // scale)
+            region = _shrink(region, small, scale)
+            probability = _shrink(probability, small, scale)
+            observed = None if observed is None else _shrink(observed, small, scale)
         points = (refined - [x0, y0] + 0.5) / scale - 0.5
         inside = (contour_to_mask(points, region.shape) > 0).astype(np.uint8)
         if not inside.any():
@@ -158,9 +159,11 @@ class BandCut:
         return restored
 
 
-def _shrink(image: NDArray[Any], size: tuple[int, int]) -> NDArray[Any]:
-    """``image`` resized to ``size`` (width, height) by area averaging, same dtype."""
-    return np.asarray(cv2.resize(image, size, interpolation=cv2.INTER_AREA), dtype=image.dtype)
+def _shrink(image: NDArray[Any], size: tuple[int, int], scale: int) -> NDArray[Any]:
+    """``image`` (cropped to ``scale`` x ``size``) shrunk to ``size`` (width, height) by area."""
+    w, h = size
+    whole = image[: h * scale, : w * scale]
+    return np.asarray(cv2.resize(whole, size, interpolation=cv2.INTER_AREA), dtype=image.dtype)
 
 
 def _signed_distance(inside: NDArray[np.uint8]) -> NDArray[np.float32]:

@@ -93,6 +93,11 @@ PROBATION = 2
 jump is right only if the object is then followed from there."""
 UNCONFIRMED = TRACKING_FROM - 1e-3
 """The confidence reported while on probation: just below ``tracking``."""
+SEARCH_BELOW = 0.445
+"""A frame whose contour's confidence is below this starts a search, and one at
+or above it gives the shape to search for (the threshold the search and the
+holding were cross-validated with; the reported status has its own,
+:data:`engine.tracking.confidence.TRACKING_FROM`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -269,7 +274,7 @@ class Tracker:
         hold = self._hold
         attempt = self._attempt(image, grey, prediction, self.cues, hold)
         visible = self._visible(grey)
-        if attempt.confidence < TRACKING_FROM and visible:
+        if attempt.confidence < SEARCH_BELOW and visible:
             self._misses += 1
             retry = self._search(image, grey, prediction)
             if retry is not None:
@@ -285,7 +290,7 @@ class Tracker:
         if self._probation > 0:
             self._probation -= 1
             confidence = min(confidence, UNCONFIRMED)
-        elif confidence >= TRACKING_FROM:
+        elif confidence >= SEARCH_BELOW:
             self._misses = 0
             self._shape = nodes
         support = MOTION_SHARE * prediction.support
