@@ -60,15 +60,12 @@ object (its gap is centred).  New conditions are appended to
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
-from statistics import NormalDist
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
-from engine.testing import _shapes
+from engine.testing import _painting, _shapes
 
 __all__ = ["CONDITIONS", "SyntheticSequence", "make_sequence"]
 
@@ -99,7 +96,6 @@ MIN_SIZE = 96
 
 _MARGIN = 12.0  # pixels between the outline's extreme points and the frame edge (mask: >= 10)
 _VERTICES = 360
-_SS = 4  # supersampling factor for anti-aliased coverage
 _OCCLUDER_BGR = (40.0, 165.0, 40.0)  # saturated green bar of "occluder"
 _ARC_FRACTION = (0.28, 0.33)
 """Share of the outline's length along which ``"no_contrast_stretch"``'s object meets its own
@@ -233,81 +229,6 @@ def make_sequence(
     return _render(condition, rng, int(length), H, W)
 
 
-@cache
-def _gauss_table() -> F32:
-    """Standard normal quantiles of 65536 equiprobable bins: fast sensor noise via lookup."""
-    nd = NormalDist()
-    return np.array([nd.inv_cdf((i + 0.5) / 65536) for i in range(65536)], np.float32)
-
-
-def _coverage(polys: F64 | list[F64], H: int, W: int) -> tuple[int, int, F32] | None:
-    """Anti-aliased area coverage of a polygon, or of the union of several:
-    ``(y0, x0, alpha)`` over the clipped bbox."""
-    parts = [polys] if isinstance(polys, np.ndarray) else polys
-    poly = np.vstack(parts)
-    x0, y0 = (max(int(np.floor(v)) - 1, 0) for v in poly.min(axis=0))
-    x1, y1 = min(int(np.ceil(poly[:, 0].max())) + 2, W), min(int(np.ceil(poly[:, 1].max())) + 2, H)
-    if x1 <= x0 or y1 <= y0:
-        return None
-    canvas = np.zeros(((y1 - y0) * _SS, (x1 - x0) * _SS), np.uint8)
-    for part in parts:  # one by one: fillPoly fills overlaps of a list even-odd
-        hi = (part - (x0, y0) + 0.5) * _SS - 0.5  # supersampled pixel centres
-        pts = np.round(np.clip(hi, -1e5, 1e5) * 16).astype(np.int32).reshape(-1, 1, 2)
-        cv2.fillPoly(canvas, [pts], 255, lineType=cv2.LINE_8, shift=4)
-    alpha = cv2.resize(canvas, (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA)
-    return y0, x0, alpha.astype(np.float32) / np.float32(255.0)
-
-
-def _paint(img: F32, poly: F64, colour: tuple[float, float, float] | F64) -> None:
-    """Composite a flat-coloured anti-aliased polygon onto ``img`` in place."""
-    cov = _coverage(poly, img.shape[0], img.shape[1])
-    if cov is not None:
-        y0, x0, a = cov
-        roi = img[y0 : y0 + a.shape[0], x0 : x0 + a.shape[1]]
-        roi += a[..., None] * (np.asarray(colour, np.float32) - roi)
-
-
-def _paint_image(img: F32, poly: F64, source: F32) -> None:
-    """Composite the pixels of ``source`` (same size as ``img``) inside a polygon, anti-aliased."""
-    cov = _coverage(poly, img.shape[0], img.shape[1])
-    if cov is not None:
-        y0, x0, a = cov
-        h, w = a.shape
-        roi = img[y0 : y0 + h, x0 : x0 + w]
-        roi += a[..., None] * (source[y0 : y0 + h, x0 : x0 + w] - roi)
-
-
-def _fill(polys: list[F64], H: int, W: int) -> U8:
-    """The mask of the union of polygons (each by :func:`engine.geometry.contour_to_mask`)."""
-    mask = contour_to_mask(polys[0], (H, W))
-    for poly in polys[1:]:
-        mask |= contour_to_mask(poly, (H, W))
-    return mask
-
-
-def _blob(rng: np.random.Generator, center: F64, radius: float) -> F64:
-    """A random static blob outline (for clutter)."""
-    t = np.linspace(0.0, 2 * np.pi, 120, endpoint=False)
-    r = radius * (
-        1 + sum(rng.uniform(0, 0.15) * np.cos(k * t + rng.uniform(0, 6.3)) for k in (2, 3))
-    )
-    return np.asarray(np.c_[center[0] + r * np.cos(t), center[1] + r * np.sin(t)], np.float64)
-
-
-def _background(rng: np.random.Generator, H: int, W: int, base: F64, amp: float) -> F32:
-    """Smooth two-colour gradient plus low-frequency blotches and fine grain (amplitude ``amp``)."""
-    a = rng.uniform(0, 2 * np.pi)
-    ys, xs = np.mgrid[0:H, 0:W].astype(np.float32)
-    g = (np.cos(a) * (xs - W / 2) + np.sin(a) * (ys - H / 2)) / np.float32(np.hypot(H, W) / 2)
-    d = rng.normal(size=3) * amp / np.sqrt(3) + amp * 0.8
-    coarse = rng.normal(size=(5, 7)).astype(np.float32)
-    blotch = cv2.resize(coarse, (W, H), interpolation=cv2.INTER_CUBIC)
-    grain = cv2.GaussianBlur(rng.normal(size=(H, W)).astype(np.float32), (0, 0), 0.8)
-    img = base.astype(np.float32) + g[..., None] * d.astype(np.float32)
-    img += (0.5 * amp * blotch + 0.3 * amp * grain)[..., None]
-    return np.asarray(img, np.float32)
-
-
 def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> SyntheticSequence:
     """Draw the scene's parameters from ``rng``, then render ``T`` frames of ``H`` x ``W``."""
     knobs = _KNOBS.get(cond, _Knobs())
@@ -384,15 +305,15 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
     obj_bgr = np.array([55.0, 60.0, 150.0]) + rng.uniform(-8, 8, 3)
     shade_amp = 8.0
     bg_base = np.array([175.0, 180.0, 165.0]) + rng.uniform(-10, 10, 3)
-    bg = _background(rng, H, W, bg_base, 20.0)
+    bg = _painting.background(rng, H, W, bg_base, 20.0)
     hidden = range(0)  # the frames the object is out of sight
     if cond == "low_contrast":
         bg_base = np.array([125.0, 130.0, 138.0]) + rng.uniform(-10, 10, 3)
-        bg = _background(rng, H, W, bg_base, 3.0)
+        bg = _painting.background(rng, H, W, bg_base, 3.0)
         obj_bgr = bg_base + rng.choice([-1.0, 1.0]) * rng.uniform(15, 20)
         shade_amp = 1.5
     elif cond == "matched_background":  # same grey as the object: B +8, R -3
-        matched = _background(rng, H, W, obj_bgr + np.array([8.0, 0.0, -3.0]), 3.0)
+        matched = _painting.background(rng, H, W, obj_bgr + np.array([8.0, 0.0, -3.0]), 3.0)
         w = np.clip((W / 2 - np.arange(W, dtype=np.float32)) / 8 + 0.5, 0, 1)[None, :, None]
         bg += w * (matched - bg)
     elif cond == "hidden":  # a large background-like occluder over the object's way
@@ -401,8 +322,10 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
         way = center[hidden.start : hidden.stop]
         mid = way.mean(axis=0)
         reach = float(np.hypot(*(way - mid).T).max()) + env + _HIDER_CLEARANCE
-        hider = _blob(rng, mid, reach / 0.7)  # _blob's radius varies by at most 30 %
-        hider_bg = _background(rng, H, W, bg_base + rng.uniform(-1, 1, 3) * _HIDER_SHADE, 20.0)
+        hider = _painting.blob(rng, mid, reach / 0.7)  # blob's radius varies by at most 30 %
+        hider_bg = _painting.background(
+            rng, H, W, bg_base + rng.uniform(-1, 1, 3) * _HIDER_SHADE, 20.0
+        )
     elif cond == "clutter":
         for i in range(int(rng.integers(6, 10))):
             size = rng.uniform(15, 45) * s
@@ -416,10 +339,10 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
             if rng.random() < 0.5:
                 colour = rng.uniform(0, 255, 3)
             if rng.random() < 0.5:
-                _paint(bg, _blob(rng, c, size), colour)
+                _painting.paint(bg, _painting.blob(rng, c, size), colour)
             else:
                 box = ((c[0], c[1]), (2 * size, size * rng.uniform(0.4, 1.2)), rng.uniform(0, 180))
-                _paint(bg, cv2.boxPoints(box).astype(np.float64), colour)
+                _painting.paint(bg, cv2.boxPoints(box).astype(np.float64), colour)
     tex_kind = int(rng.integers(2))
     tex_bgr = np.array([150.0, 215.0, 235.0]) + rng.uniform(-15, 15, 3)
     tex_period = rng.uniform(16, 28) * s
@@ -429,14 +352,14 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
     occ_angle = rng.uniform(0, np.pi)
     occ_width = rng.uniform(8, 14)
     blur = cond == "motion_blur"
-    noise_lut = _gauss_table() * np.float32(knobs.noise)
+    noise_lut = _painting.gauss_table() * np.float32(knobs.noise)
 
     frames: list[U8] = []
     masks: list[U8] = []
     for i in range(T):
         img = bg.copy()
         pad = int(blur_pad) + 2 if blur else 0
-        cov = _coverage(painted[i], H, W)
+        cov = _painting.coverage(painted[i], H, W)
         assert cov is not None  # the object is always inside the frame
         y0, x0, a = cov
         if pad:
@@ -467,7 +390,7 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
             kc = pad
             line = np.array([kc, kc]) + np.outer([-0.5, 0.5, 0.5, -0.5], vel)
             line += np.outer([-0.5, -0.5, 0.5, 0.5], (-vel[1] / n, vel[0] / n))
-            kcov = _coverage(line, 2 * kc + 1, 2 * kc + 1)
+            kcov = _painting.coverage(line, 2 * kc + 1, 2 * kc + 1)
             kern = np.zeros((2 * kc + 1, 2 * kc + 1), np.float32)
             if kcov is not None:
                 ky, kx, ka = kcov
@@ -491,13 +414,13 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
                 + np.outer([-1, 1, 1, -1], along * half_l)
                 + np.outer([-1, -1, 1, 1], nrm * half_w)
             )
-            _paint(img, bar, _OCCLUDER_BGR)
+            _painting.paint(img, bar, _OCCLUDER_BGR)
         if i in hidden:
-            _paint_image(img, hider, hider_bg)
+            _painting.paint_image(img, hider, hider_bg)
         img += noise_lut[rng.integers(0, 65536, (H, W, 3), dtype=np.uint16)]
         np.clip(img, 0, 255, out=img)
         frame = np.rint(img).astype(np.uint8)
-        mask = _fill(body[i], H, W)
+        mask = _painting.fill(body[i], H, W)
         frame.flags.writeable = False
         mask.flags.writeable = False
         frames.append(frame)

@@ -40,14 +40,11 @@ from numpy.typing import ArrayLike, NDArray
 from engine.geometry import as_nodes, resample
 from engine.tracking._frames import as_frame as _as_frame
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
-from engine.tracking._state_codec import count as _count
-from engine.tracking._state_codec import factors as _factors
 from engine.tracking._state_codec import from_version_1 as _from_version_1
 from engine.tracking._state_codec import pack_image, unpack_image
 from engine.tracking.appearance import ColourHistogram
 from engine.tracking.confidence import (
     TRACKING_FROM,
-    Status,
     calibrated,
     evidence,
     status_of,
@@ -55,10 +52,12 @@ from engine.tracking.confidence import (
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.holding import carry, hold_factors, side_contrast
 from engine.tracking.maps import roi_box
+from engine.tracking.memory import Memory
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.reacquisition import search_reach, search_shape
 from engine.tracking.refinement import Refinement, refine
+from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
 from engine.tracking.stages import (
     AppearanceModel,
@@ -107,34 +106,6 @@ class _Attempt:
     refinement: Refinement
     nodes: NDArray[np.float64]
     confidence: float
-
-
-@dataclass(frozen=True, slots=True)
-class TrackResult:
-    """Result of one :meth:`Tracker.step`.
-
-    Attributes
-    ----------
-    nodes : numpy.ndarray
-        (N, 2) float64 contour, ``[x, y]`` pixels.
-    iterations : int
-        Refinement iterations run.
-    converged : bool
-        Whether the refinement settled before the iteration limit.
-    confidence : float
-        In [0, 1]: the predicted overlap (IoU) of the contour with the object
-        (:mod:`engine.tracking.confidence`); 0 for a contour outside the frame.
-    status : {"tracking", "uncertain", "lost"}
-        ``tracking``: the contour is on the object; ``uncertain``: it may be
-        off; ``lost``: it most likely does not cover the object (from the
-        confidence, :func:`engine.tracking.confidence.status_of`).
-    """
-
-    nodes: NDArray[np.float64]
-    iterations: int
-    converged: bool
-    confidence: float
-    status: Status = "tracking"
 
 
 class Tracker:
@@ -208,10 +179,7 @@ class Tracker:
         # the previous grey frame (None: the next frame starts the track)
         self._previous: NDArray[np.uint8] | None = None
         self.frame_index = -1
-        self._misses: int = 0  # frames in a row not tracking
-        self._probation: int = 0  # frames left to report a re-acquired contour uncertain
-        self._shape: NDArray[np.float64] = self._nodes  # the contour of the last tracking frame
-        self._hold: NDArray[np.float64] = np.zeros(len(self._nodes))  # per node, holding.py
+        self._memory = Memory.fresh(self._nodes)
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -271,28 +239,29 @@ class Tracker:
             object_weight=self.cues.object_weight,
         )
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
-        hold = self._hold
+        memory = self._memory
+        hold = memory.hold
         attempt = self._attempt(image, grey, prediction, self.cues, hold)
         visible = self._visible(grey)
         if attempt.confidence < SEARCH_BELOW and visible:
-            self._misses += 1
+            memory.misses += 1
             retry = self._search(image, grey, prediction)
             if retry is not None:
-                moved = carry(self._hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
+                moved = carry(hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
                 other = self._attempt(image, grey, retry, cues, moved)
                 margin = attempt.confidence + REACQUIRE_MARGIN
                 if other.confidence >= self.options.reacquire_above and other.confidence > margin:
                     prediction, attempt, self.cues, hold = retry, other, cues, moved
                     self.motion.reset()
-                    self._probation = PROBATION + 1
+                    memory.probation = PROBATION + 1
         refinement, nodes, confidence = attempt.refinement, attempt.nodes, attempt.confidence
-        self._hold = carry(hold, refinement.nodes, nodes)
-        if self._probation > 0:
-            self._probation -= 1
+        memory.hold = carry(hold, refinement.nodes, nodes)
+        if memory.probation > 0:
+            memory.probation -= 1
             confidence = min(confidence, UNCONFIRMED)
         elif confidence >= SEARCH_BELOW:
-            self._misses = 0
-            self._shape = nodes
+            memory.misses = 0
+            memory.shape = nodes
         support = MOTION_SHARE * prediction.support
         signal = support + (1 - MOTION_SHARE) * refinement.contrast
         if not visible:
@@ -335,8 +304,8 @@ class Tracker:
         """The remembered shape where the appearance says the object is (None: nowhere new)."""
         if self.options.reacquire_above >= 1.0:
             return None
-        reach = search_reach(self._misses)
-        found = search_shape(image, prediction.nodes, self._shape, self.appearance, reach)
+        reach = search_reach(self._memory.misses)
+        found = search_shape(image, prediction.nodes, self._memory.shape, self.appearance, reach)
         if found is None or not valid_contour(found, grey.shape, found, check_crossing=False):
             return None
         matrix = prediction.matrix.copy()
@@ -355,15 +324,12 @@ class Tracker:
         contrast = side_contrast(
             self.appearance.probability(image[y0:y1, x0:x1]), (x0, y0), self._nodes
         )
-        self._hold = hold_factors(contrast, self.options.hold_below)
+        self._memory.hold = hold_factors(contrast, self.options.hold_below)
         return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
 
     def _forget_search(self) -> None:
         """No frames missed; the current contour is the shape to look for."""
-        self._misses = 0
-        self._probation = 0
-        self._shape = self._nodes
-        self._hold = np.zeros(len(self._nodes))
+        self._memory = Memory.fresh(self._nodes)
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
         status = status_of(confidence)
@@ -398,14 +364,7 @@ class Tracker:
             "stages": None
             if previous is None
             else {name: getattr(self, name).to_state() for name in STAGES},
-            "search": None
-            if previous is None
-            else {
-                "misses": self._misses,
-                "probation": self._probation,
-                "shape": self._shape.tolist(),
-                "hold": self._hold.tolist(),
-            },
+            "search": None if previous is None else self._memory.to_state(),
         }
 
     @classmethod
@@ -469,10 +428,7 @@ class Tracker:
                     tracker.segmentation = segmented
                 search = state.get("search")
                 if search is not None:
-                    tracker._misses = _count(search["misses"])
-                    tracker._probation = _count(search["probation"])
-                    tracker._shape = as_nodes(search["shape"])
-                    tracker._hold = _factors(search["hold"], len(tracker._nodes))
+                    tracker._memory = Memory.from_state(search, len(tracker._nodes))
                 tracker._previous = unpack_image(previous)
         except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
             raise ValueError(f"malformed tracker state: {exc}") from None
