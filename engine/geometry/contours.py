@@ -93,6 +93,12 @@ def polygon_area(nodes: Nodes) -> float:
     return 0.5 * (inner + float(x[-1] * y[0] - y[-1] * x[0]))
 
 
+def perimeter(nodes: Nodes) -> float:
+    """Length (pixels) of the closed polygon through ``nodes``, the closing edge included."""
+    closed = np.vstack([nodes, nodes[:1]])
+    return float(np.linalg.norm(np.diff(closed, axis=0), axis=1).sum())
+
+
 def self_intersects(nodes: Nodes, *, closed: bool = True) -> bool:
     """Whether two non-adjacent edges of the polyline properly cross.
 

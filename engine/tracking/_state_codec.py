@@ -19,11 +19,15 @@ def pack_histogram(values: NDArray[np.float64]) -> str:
     return base64.b64encode(zlib.compress(values.astype("<f8").tobytes())).decode("ascii")
 
 
+def _inflate(text: str, limit: int) -> bytes:
+    """Base64 then zlib, reading at most one byte beyond ``limit`` (a zip bomb stops there)."""
+    return zlib.decompressobj().decompress(base64.b64decode(text, validate=True), limit + 1)
+
+
 def unpack_histogram(text: str) -> NDArray[np.float64]:
     """Inverse of :func:`pack_histogram`; rejects anything that is not a histogram."""
     limit = max(HISTOGRAM_SIZES) * 8
-    inflater = zlib.decompressobj()
-    raw = inflater.decompress(base64.b64decode(text, validate=True), limit + 1)
+    raw = _inflate(text, limit)
     if len(raw) > limit or raw == b"" or len(raw) % 8:
         raise ValueError("histogram has the wrong size")
     values = np.frombuffer(raw, dtype="<f8").astype(np.float64)
@@ -32,6 +36,23 @@ def unpack_histogram(text: str) -> NDArray[np.float64]:
     if not np.isfinite(values).all() or (values < 0).any():
         raise ValueError("histogram values must be finite and >= 0")
     return values
+
+
+def pack_counts(counts: NDArray[np.float32]) -> str:
+    """Base64 of zlib-compressed little-endian float32 (per-window colour counts): exact, small."""
+    return base64.b64encode(zlib.compress(counts.astype("<f4").tobytes())).decode("ascii")
+
+
+def unpack_counts(text: str, rows: int, sizes: tuple[int, ...]) -> NDArray[np.float32]:
+    """Inverse of :func:`pack_counts`: ``rows`` x one of ``sizes`` counts, finite and >= 0."""
+    limit = rows * max(sizes) * 4
+    raw = _inflate(text, limit)
+    if len(raw) not in (rows * size * 4 for size in sizes):
+        raise ValueError("local colour windows: counts of the wrong size")
+    counts = np.frombuffer(raw, dtype="<f4").astype(np.float32).reshape(rows, -1)
+    if not np.isfinite(counts).all() or (counts < 0).any():
+        raise ValueError("local colour windows: counts must be finite and >= 0")
+    return counts
 
 
 def pack_image(image: NDArray[np.uint8]) -> str:

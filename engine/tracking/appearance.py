@@ -44,11 +44,13 @@ OBJECT_INSET = 2
 the contour's own pixels mix object and background."""
 
 
-def quantise(image: NDArray[np.uint8]) -> NDArray[np.uint16]:
-    """Histogram bin of every pixel (BGR: 16^3 bins; grey: 32 bins), one compiled pass."""
+def quantise(
+    image: NDArray[np.uint8], grey_bits: int = _GREY_BITS, colour_bits: int = _COLOUR_BITS
+) -> NDArray[np.uint16]:
+    """Histogram bin of every pixel (by default BGR: 16^3 bins; grey: 32), one compiled pass."""
     from engine.tracking._image_kernels import colour_bins
 
-    bins: NDArray[np.uint16] = colour_bins(_three_d(image), _GREY_BITS, _COLOUR_BITS)
+    bins: NDArray[np.uint16] = colour_bins(_three_d(image), grey_bits, colour_bits)
     return bins
 
 
@@ -58,9 +60,11 @@ def _three_d(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return arr[..., None] if arr.ndim == 2 else arr
 
 
-def bin_count(image: NDArray[np.uint8]) -> int:
-    """Number of histogram bins for frames like ``image``."""
-    return 1 << (_GREY_BITS if image.ndim == 2 else 3 * _COLOUR_BITS)
+def bin_count(
+    image: NDArray[np.uint8], grey_bits: int = _GREY_BITS, colour_bits: int = _COLOUR_BITS
+) -> int:
+    """Number of histogram bins for frames like ``image`` (at those bits per channel)."""
+    return 1 << (grey_bits if image.ndim == 2 else 3 * colour_bits)
 
 
 @dataclass(frozen=True, slots=True)

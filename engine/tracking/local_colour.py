@@ -14,8 +14,6 @@ neither side).  Coordinates are ``[x, y]`` pixels (x = column, y = row).
 
 from __future__ import annotations
 
-import base64
-import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -24,7 +22,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
+from engine.geometry import contour_to_mask, perimeter
+from engine.tracking._state_codec import pack_counts, unpack_counts
+from engine.tracking.appearance import bin_count as histogram_bins
+from engine.tracking.appearance import quantise
 
 __all__ = ["WINDOWS", "LocalColour"]
 
@@ -51,24 +52,17 @@ MIN_COUNT = 10.0
 
 def colour_bins(image: NDArray[np.uint8]) -> NDArray[np.uint16]:
     """Bin of every pixel (BGR: 8^3 bins; grey: 32)."""
-    from engine.tracking._image_kernels import colour_bins as kernel
-
-    arr = np.ascontiguousarray(image, dtype=np.uint8)
-    arr = arr[..., None] if arr.ndim == 2 else arr
-    bins: NDArray[np.uint16] = kernel(arr, GREY_BITS, COLOUR_BITS)
-    return bins
+    return quantise(image, GREY_BITS, COLOUR_BITS)
 
 
 def bin_count(image: NDArray[np.uint8]) -> int:
     """Number of bins for frames like ``image``."""
-    return 1 << (GREY_BITS if image.ndim == 2 else 3 * COLOUR_BITS)
+    return histogram_bins(image, GREY_BITS, COLOUR_BITS)
 
 
 def window_half(nodes: NDArray[np.float64]) -> int:
     """Half side (pixels) of the windows for a contour: :data:`OVERLAP` of its length per window."""
-    closed = np.vstack([nodes, nodes[:1]])
-    length = float(np.linalg.norm(np.diff(closed, axis=0), axis=1).sum())
-    return max(MIN_HALF, round(OVERLAP * length / WINDOWS))
+    return max(MIN_HALF, round(OVERLAP * perimeter(nodes) / WINDOWS))
 
 
 def window_nodes(count: int) -> NDArray[np.int64]:
@@ -169,8 +163,8 @@ class LocalColour:
         return {
             "half": self.half,
             "nodes": self.nodes,
-            "object": _pack(self.object_counts),
-            "background": _pack(self.background_counts),
+            "object": pack_counts(self.object_counts),
+            "background": pack_counts(self.background_counts),
         }
 
     @classmethod
@@ -179,25 +173,9 @@ class LocalColour:
         half, nodes = int(state["half"]), int(state["nodes"])
         if not 1 <= half <= 1 << 16 or nodes < 3:
             raise ValueError("local colour windows: bad window size or node count")
-        fg, bg = _unpack(state["object"]), _unpack(state["background"])
+        sizes = (1 << GREY_BITS, 1 << (3 * COLOUR_BITS))
+        fg = unpack_counts(state["object"], WINDOWS, sizes)
+        bg = unpack_counts(state["background"], WINDOWS, sizes)
         if fg.shape != bg.shape:
             raise ValueError("local colour windows: object and background counts differ in size")
         return cls(half, nodes, fg, bg)
-
-
-_SIZES = (1 << GREY_BITS, 1 << (3 * COLOUR_BITS))
-
-
-def _pack(counts: NDArray[np.float32]) -> str:
-    return base64.b64encode(zlib.compress(counts.astype("<f4").tobytes())).decode("ascii")
-
-
-def _unpack(text: str) -> NDArray[np.float32]:
-    limit = WINDOWS * max(_SIZES) * 4
-    raw = zlib.decompressobj().decompress(base64.b64decode(text, validate=True), limit + 1)
-    if len(raw) not in (WINDOWS * size * 4 for size in _SIZES):
-        raise ValueError("local colour windows: counts of the wrong size")
-    counts = np.frombuffer(raw, dtype="<f4").astype(np.float32).reshape(WINDOWS, -1)
-    if not np.isfinite(counts).all() or (counts < 0).any():
-        raise ValueError("local colour windows: counts must be finite and >= 0")
-    return counts

@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask, mask_to_contour
+from engine.geometry import contour_to_mask, mask_to_contour, perimeter
 from engine.tracking.local_colour import LocalColour
 from engine.tracking.maps import Maps
 from engine.tracking.stages import Frame, check_kind
@@ -177,9 +177,7 @@ def _signed_distance(inside: NDArray[np.uint8]) -> NDArray[np.float32]:
 
 def _scale(nodes: NDArray[np.float64], band: int) -> int:
     """1, or 2 when the band has more than :data:`MAX_BAND_PIXELS` pixels (a large object)."""
-    closed = np.vstack([nodes, nodes[:1]])
-    length = float(np.linalg.norm(np.diff(closed, axis=0), axis=1).sum())
-    return 2 if 2 * band * length > MAX_BAND_PIXELS else 1
+    return 2 if 2 * band * perimeter(nodes) > MAX_BAND_PIXELS else 1
 
 
 def _cut(

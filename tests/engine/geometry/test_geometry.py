@@ -15,6 +15,7 @@ from engine.geometry import (
     contour_to_mask,
     mask_iou,
     mask_to_contour,
+    perimeter,
     polygon_area,
     resample,
     self_intersects,
@@ -116,6 +117,18 @@ def test_resample_zero_length_contour_repeats_its_point(closed: bool) -> None:
     assert out.shape == (9, 2)
     assert out.dtype == np.float64
     np.testing.assert_array_equal(out, np.full((9, 2), 7.25))
+
+
+# --- perimeter -------------------------------------------------------------------------------
+
+
+def test_perimeter_closes_the_polygon() -> None:
+    assert perimeter(SQUARE) == pytest.approx(40.0)  # the edge back to the start counts
+    assert perimeter(SQUARE[::-1] + np.array([7.0, -3.0])) == pytest.approx(40.0)
+    assert perimeter(circle_nodes((0.0, 0.0), 10.0, 720)) == pytest.approx(
+        2 * math.pi * 10, rel=1e-4
+    )
+    assert perimeter(np.full((4, 2), 3.0)) == 0.0
 
 
 # --- polygon_area ----------------------------------------------------------------------------

@@ -17,8 +17,8 @@ from numpy.typing import NDArray
 
 from engine import TrackerOptions, TrackResult
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
+from engine.tracking._state_codec import pack_counts as _pack_counts
 from engine.tracking._state_codec import pack_histogram as _pack
-from engine.tracking.local_colour import _pack as _pack_counts
 from engine.tracking.tracker import STATE_VERSION, Tracker
 from tests.engine.tracking.moving_disc import (
     H,
