@@ -374,6 +374,16 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("tie", 1.5),
     ("tie", -0.1),
     ("robust_scale", -1.0),
+    ("cut_band", -1),
+    ("cut_band", 65),
+    ("cut_band", 8.0),
+    ("cut_band", True),
+    ("reacquire_above", -0.1),
+    ("reacquire_above", 1.5),
+    ("reacquire_above", math.nan),
+    ("hold_below", -0.1),
+    ("hold_below", 2.0),
+    ("hold_below", "some"),
 ]
 
 
