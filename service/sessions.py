@@ -18,8 +18,11 @@ from engine import Tracker, deform
 from engine.geometry import circle_nodes
 from engine.physics import MODAL_METHODS
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
-from service.schemas import SessionCreate
+from service.schemas import LIMIT, SessionCreate
 
+NEAR_LIMIT = 1e6
+"""Pixels within the coordinate limit where a frame's step is undoable: far more
+than a tracker moves a contour in one frame."""
 MODAL_MAX_NODES = 1024
 """Node limit of the O(N^3) modal methods (about 0.3 s per request at 1024)."""
 
@@ -123,6 +126,13 @@ class Session:
         nodes = self.rest + U
         if not np.isfinite(nodes).all():
             raise InvalidInputError("forces: the deformed contour overflows float64")
+        # every result is checked against the response's own bounds before it is kept
+        reach = max(float(np.abs(nodes).max()), float(np.abs(U).max()))
+        if reach > LIMIT:
+            raise InvalidInputError(
+                f"forces: they move the contour to {reach:.10g} px, beyond the limit of "
+                f"+-{LIMIT:g} px; the session is unchanged"
+            )
         if self.tracker is not None:
             try:
                 self.tracker.reset(nodes)  # validates before anything changes
@@ -145,10 +155,17 @@ class Session:
         if self.tracker is None:
             raise InvalidInputError("frames need a closed contour (an object boundary)")
         start = time.perf_counter()
+        # near the coordinate limit a step could carry the contour past it: keep a way back
+        undo = self.tracker.to_state() if np.abs(self.nodes).max() > LIMIT - NEAR_LIMIT else None
         try:
             result = self.tracker.step(frame)
         except ValueError as exc:
             raise BadImageError(str(exc)) from None
+        if undo is not None and np.abs(result.nodes).max() > LIMIT:
+            self.tracker = Tracker.from_state(undo)
+            raise InvalidInputError(
+                f"the tracked contour would lie beyond +-{LIMIT:g} px; the session is unchanged"
+            )
         self.frame_index += 1
         self.nodes = result.nodes
         self.rest = result.nodes.copy()

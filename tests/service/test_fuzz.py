@@ -154,7 +154,7 @@ CONTENT_TYPES = [
 numbers = st.one_of(
     st.floats(),
     st.integers(min_value=-(10**30), max_value=10**30),
-    st.sampled_from([0, -1, 1e-320, 1e308, -1e308, 4096, 4097]),
+    st.sampled_from([0, -1, 1e-320, 1e308, -1e308, 4096, 4097, 1e9, -1e9, 999_999_999.5]),
 )
 json_values = st.recursive(
     st.none() | st.booleans() | numbers | st.text(max_size=20),
@@ -235,6 +235,21 @@ def test_near_valid_sessions_and_forces(fuzz_client: TestClient, spec: dict[str,
         created.content,
     )
     sid = created.json()["id"] if created.status_code == 201 else new_session_in(fuzz_client)
+    before = fuzz_client.get(f"/v1/sessions/{sid}").json()
     path = "/v1/sessions/{session_id}/forces"
     forces = fuzz_client.post(f"/v1/sessions/{sid}/forces", content=body, headers=headers)
     check_body("POST", path, forces.status_code, forces.headers["content-type"], forces.content)
+    # whatever the forces did, the session still reads back within the schema ...
+    after = fuzz_client.get(f"/v1/sessions/{sid}")
+    check_body(
+        "GET",
+        "/v1/sessions/{session_id}",
+        after.status_code,
+        after.headers["content-type"],
+        after.content,
+    )
+    assert after.status_code == 200
+    if forces.status_code != 200:  # ... and an error changed nothing
+        assert {k: v for k, v in after.json().items() if k != "expires_at"} == {
+            k: v for k, v in before.items() if k != "expires_at"
+        }

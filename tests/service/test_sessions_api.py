@@ -223,6 +223,68 @@ def test_forces_act_on_the_rest_shape_not_cumulatively(client: TestClient) -> No
     assert second["version"] == 3
 
 
+@pytest.mark.parametrize(
+    "forces",
+    [
+        [[1e9, 1e9]] * 6,  # each node pushed to just past the limit
+        [[-1e9, -1e9]] * 6,
+    ],
+)
+def test_forces_past_the_coordinate_limit_are_refused_and_change_nothing(
+    client: TestClient, forces: list[list[float]]
+) -> None:
+    """Once a 200 with nodes past the limit, then a 500 on every later GET."""
+    session = create(client, {"nodes": POLYGON, "closed": False})
+    sid = session["id"]
+    before = client.get(f"/v1/sessions/{sid}").json()
+    error = error_of(client.post(f"/v1/sessions/{sid}/forces", json={"forces": forces}), 422)
+    assert "unchanged" in error["message"]
+    after = client.get(f"/v1/sessions/{sid}")
+    assert after.status_code == 200
+    unchanged = {k: v for k, v in after.json().items() if k != "expires_at"}
+    assert unchanged == {k: v for k, v in before.items() if k != "expires_at"}
+    # the session goes on as before
+    assert (
+        client.post(f"/v1/sessions/{sid}/forces", json={"forces": [[1, 0]] * 6}).status_code == 200
+    )
+
+
+def test_a_frame_whose_result_would_pass_the_limit_changes_nothing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Near the limit a step is undone if its contour would leave the bounds."""
+    from engine.tracking import TrackResult
+    from service.domain_errors import InvalidInputError
+    from service.schemas import LIMIT, SessionCreate
+    from service.sessions import Session
+
+    far = [[LIMIT - 100.0 + x, LIMIT - 100.0 + y] for x, y in ((0, 0), (40, 0), (40, 40), (0, 40))]
+    session = Session.create(SessionCreate(nodes=far), None, 64)
+    frame = np.zeros((48, 64, 3), np.uint8)
+    session.track(frame)  # the first frame: the tracker starts
+    tracker = session.tracker
+    assert tracker is not None
+    state, version = tracker.to_state(), session.version
+    step = tracker.step
+
+    def overshoot(image: NDArray[np.uint8]) -> TrackResult:
+        result = step(image)
+        return TrackResult(
+            result.nodes + 200.0,
+            result.iterations,
+            result.converged,
+            result.confidence,
+            result.status,
+        )
+
+    monkeypatch.setattr(tracker, "step", overshoot)
+    with pytest.raises(InvalidInputError, match="unchanged"):
+        session.track(frame)
+    assert session.version == version
+    assert session.tracker is not None
+    assert session.tracker.to_state() == state
+
+
 def test_forces_on_the_shortest_open_chain(client: TestClient) -> None:
     body = create(client, {"nodes": [[0, 0], [10, 0]], "closed": False, "stiffness": 1})
     out = client.post(f"/v1/sessions/{body['id']}/forces", json={"forces": [[1, 0], [-1, 0]]})
