@@ -86,6 +86,15 @@ def body(status: int, code: str, message: str, **extra: Any) -> dict[str, Any]:
     return {"error": {"status": status, "code": code, "message": message, **extra}}
 
 
+def malformed_json(error: Mapping[str, Any]) -> str:
+    """A person's reading of a JSON decode error: what is wrong and at which character."""
+    loc = error.get("loc", ())
+    at = loc[-1] if loc and isinstance(loc[-1], int) else None
+    reason = (error.get("ctx") or {}).get("error") or error.get("msg") or "JSON decode error"
+    where = "" if at is None else f" at character {at}"
+    return f"the body is not valid JSON{where}: {reason}"
+
+
 def allowed_methods(app: FastAPI, path: str) -> list[str]:
     """The HTTP methods the API offers on ``path`` (from its OpenAPI paths)."""
     methods: set[str] = set()
@@ -111,6 +120,10 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def invalid(_: Request, exc: RequestValidationError) -> JSONResponse:
+        broken = [e for e in exc.errors() if e.get("type") == "json_invalid"]
+        if broken:  # not JSON at all: a malformed request (400), not an invalid value (422)
+            metrics.ERRORS.labels(kind="bad_json").inc()
+            return JSONResponse(body(400, "bad_json", malformed_json(broken[0])), status_code=400)
         metrics.ERRORS.labels(kind="invalid").inc()
         details = [
             {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))} for e in exc.errors()

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from service.domain_errors import BadImageError, ImageTooLargeError, UnsupportedImageTypeError
 from service.image_types import SUPPORTED, sniff
+from service.units import too_many_bytes, too_many_pixels
 
 
 def dimensions(data: bytes, kind: str) -> tuple[int, int] | None:
@@ -72,7 +73,7 @@ def decode_frame(
         Empty, of another format, or not decodable.
     """
     if len(data) > max_bytes:
-        raise ImageTooLargeError(f"image of {len(data)} bytes exceeds {max_bytes}")
+        raise ImageTooLargeError(too_many_bytes("image", len(data), max_bytes))
     if not data:
         raise BadImageError("empty image")
     declared = (media_type or "").split(";")[0].strip().lower()
@@ -86,7 +87,7 @@ def decode_frame(
         raise BadImageError(f"unreadable {kind} header")
     w, h = size
     if w * h > max_pixels:
-        raise ImageTooLargeError(f"image of {w} x {h} pixels exceeds {max_pixels}")
+        raise ImageTooLargeError(too_many_pixels(w, h, max_pixels))
     frame = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
     if frame is None or frame.size == 0:
         raise BadImageError(f"the {kind} image does not decode")

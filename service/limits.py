@@ -9,6 +9,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service import metrics
 from service.errors import body
+from service.units import too_many_bytes
 
 
 class BodyLimit:
@@ -32,7 +33,7 @@ class BodyLimit:
         headers = dict(scope.get("headers") or [])
         declared = headers.get(b"content-length")
         if declared is not None and declared.isdigit() and int(declared) > limit:
-            await _too_large(send, limit)
+            await _too_large(send, limit, int(declared))
             return
         seen = 0
         responded = False
@@ -56,19 +57,19 @@ class BodyLimit:
             await self.app(scope, counting, guarded)
         except _BodyTooLarge:
             if not responded:
-                await _too_large(send, limit)
+                await _too_large(send, limit, None)
 
 
 class _BodyTooLarge(HTTPException):
     """Raised inside a body read; FastAPI passes HTTP exceptions through."""
 
     def __init__(self, limit: int) -> None:
-        super().__init__(413, f"request body exceeds {limit} bytes")
+        super().__init__(413, too_many_bytes("body", None, limit))
 
 
-async def _too_large(send: Send, limit: int) -> None:
+async def _too_large(send: Send, limit: int, size: int | None) -> None:
     metrics.ERRORS.labels(kind="too_large").inc()
-    payload = json.dumps(body(413, "too_large", f"request body exceeds {limit} bytes")).encode()
+    payload = json.dumps(body(413, "too_large", too_many_bytes("body", size, limit))).encode()
     await send(
         {
             "type": "http.response.start",

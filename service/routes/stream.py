@@ -44,6 +44,7 @@ from service.schemas import ForcesIn
 from service.settings import Settings
 from service.shutdown import Stream
 from service.store import StreamLease
+from service.units import too_many_bytes
 from service.work import compute, track_encoded
 
 router = APIRouter(tags=["stream"])
@@ -167,11 +168,14 @@ async def _receive(websocket: WebSocket, inbox: Inbox, settings: Settings) -> No
         data, text = message.get("bytes"), message.get("text")
         if data is not None:
             if len(data) > settings.max_frame_bytes:
-                raise _FatalError(1009, f"frame exceeds {settings.max_frame_bytes} bytes")
+                raise _FatalError(
+                    1009, too_many_bytes("frame", len(data), settings.max_frame_bytes)
+                )
             inbox.put_frame(data)
         elif text is not None:
             if len(text.encode()) > settings.max_json_bytes:
-                raise _FatalError(1009, f"message exceeds {settings.max_json_bytes} bytes")
+                size = len(text.encode())
+                raise _FatalError(1009, too_many_bytes("message", size, settings.max_json_bytes))
             try:
                 parsed = json.loads(text)
             except (ValueError, RecursionError):  # not JSON, or nested beyond reason

@@ -100,7 +100,7 @@ def test_json_over_the_limit_with_content_length(api: TestClient) -> None:
     assert len(body) > JSON_LIMIT
     response = api.post("/v1/sessions", content=body, headers={"content-type": "application/json"})
     error = error_of(response, 413, "too_large")
-    assert str(JSON_LIMIT) in error["message"]
+    assert error["message"].endswith("the limit is 2 MiB")  # sizes as people read them
 
 
 def test_json_over_the_limit_chunked_without_content_length(api: TestClient) -> None:
@@ -322,7 +322,7 @@ def test_a_png_claiming_20000_squared_is_refused_without_decoding(
         headers={"content-type": "image/png"},
     )
     error = error_of(response, 413, "too_large")
-    assert "20000 x 20000" in error["message"]
+    assert "frame is 20000\u00d720000 (400.0 MP); the limit is" in error["message"]
 
 
 def test_a_truncated_jpeg(api: TestClient) -> None:

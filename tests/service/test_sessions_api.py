@@ -482,8 +482,15 @@ def test_invalid_session_specs(client: TestClient, spec: dict[str, Any]) -> None
     assert error_of(client.post("/v1/sessions", json=spec), 422)["code"] == "invalid"
 
 
-def test_invalid_json_is_a_client_error(client: TestClient) -> None:
+@pytest.mark.parametrize(
+    ("body", "where"), [(b"{not json", "character 1"), (b'{"nodes": [[1, 2],]}', "character 18")]
+)
+def test_malformed_json_is_a_400_saying_where(client: TestClient, body: bytes, where: str) -> None:
+    """As the README says: 400 for a body that is not JSON, 422 for JSON with bad values."""
     response = client.post(
-        "/v1/sessions", content=b"{not json", headers={"content-type": "application/json"}
+        "/v1/sessions", content=body, headers={"content-type": "application/json"}
     )
-    error_of(response, 422)
+    error = error_of(response, 400)
+    assert error["code"] == "bad_json"
+    assert "not valid JSON" in error["message"]
+    assert where in error["message"]
