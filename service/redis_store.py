@@ -1,9 +1,12 @@
 """Sessions in Redis, shared by every replica (``EFDM_REDIS_URL``).
 
 Each session is one hash ``<prefix>:session:<id>`` with fields ``v`` (its
-version), ``o`` (owner) and ``d`` (the whole state as JSON, tracker included),
-expiring after the idle TTL; a sorted set ``<prefix>:sessions`` (score =
-expiry time) counts them for the session cap.  Every change is an atomic
+version), ``o`` (owner), ``f`` (frame index), ``t`` (last touched) and ``d``
+(the whole state as JSON, tracker included), expiring after the idle TTL; a
+sorted set ``<prefix>:sessions`` (score = expiry time) counts them for the
+session cap, and one per owner, ``<prefix>:owned:<owner>`` (ids in
+lexicographic order, expiring a TTL after the owner's last change), lists
+them; ids of expired sessions leave it when a listing meets them.  Every change is an atomic
 compare-and-set on the version (Lua): of two replicas changing one session
 at once, one wins and the other gets :class:`VersionConflictError`, so no update
 is lost.  When Redis is unreachable, calls raise :class:`StoreUnavailableError`
@@ -18,6 +21,7 @@ import json
 import time
 import weakref
 from collections.abc import AsyncIterator, Awaitable, Callable
+from functools import partial
 from typing import Any, TypeVar
 
 import anyio.to_thread
@@ -33,26 +37,34 @@ from service.domain_errors import (
     VersionConflictError,
 )
 from service.sessions import Session
+from service.store import Listed
 
 T = TypeVar("T")
 
-# KEYS: session, index.  ARGV: version, owner, data, ttl_ms, id, expiry, now, cap
+# KEYS: session, index, owned.
+# ARGV: version, owner, data, ttl_ms, id, expiry, now, cap, frame index, touched
 _CREATE = """
 redis.call('ZREMRANGEBYSCORE', KEYS[2], '-inf', ARGV[7])
 if redis.call('ZCARD', KEYS[2]) >= tonumber(ARGV[8]) then return 0 end
-redis.call('HSET', KEYS[1], 'v', ARGV[1], 'o', ARGV[2], 'd', ARGV[3])
+redis.call('HSET', KEYS[1], 'v', ARGV[1], 'o', ARGV[2], 'd', ARGV[3], 'f', ARGV[9], 't', ARGV[10])
 redis.call('PEXPIRE', KEYS[1], ARGV[4])
 redis.call('ZADD', KEYS[2], ARGV[6], ARGV[5])
+redis.call('ZADD', KEYS[3], 0, ARGV[5])
+redis.call('PEXPIRE', KEYS[3], ARGV[4])
 return 1
 """
-# KEYS: session, index.  ARGV: expected version, new version, data, ttl_ms, id, expiry
+# KEYS: session, index, owned.
+# ARGV: expected version, new version, data, ttl_ms, id, expiry, frame index, touched
 _COMMIT = """
 local v = redis.call('HGET', KEYS[1], 'v')
 if not v then return -1 end
 if v ~= ARGV[1] then return 0 end
-if ARGV[3] ~= '' then redis.call('HSET', KEYS[1], 'v', ARGV[2], 'd', ARGV[3]) end
+if ARGV[3] ~= '' then redis.call('HSET', KEYS[1], 'v', ARGV[2], 'd', ARGV[3], 'f', ARGV[7]) end
+redis.call('HSET', KEYS[1], 't', ARGV[8])
 redis.call('PEXPIRE', KEYS[1], ARGV[4])
 redis.call('ZADD', KEYS[2], ARGV[6], ARGV[5])
+redis.call('ZADD', KEYS[3], 0, ARGV[5])
+redis.call('PEXPIRE', KEYS[3], ARGV[4])
 return 1
 """
 
@@ -134,6 +146,9 @@ class RedisStore:
     def _key(self, session_id: str) -> str:
         return f"{self.prefix}:session:{session_id}"
 
+    def _owned(self, owner: str | None) -> str:
+        return f"{self.prefix}:owned:{owner or '-'}"
+
     async def _call(self, fn: Callable[[], Awaitable[T]]) -> T:
         try:
             return await fn()
@@ -151,7 +166,7 @@ class RedisStore:
         now = time.time()
         created = await self._call(
             lambda: self._create(
-                keys=[self._key(session.id), self._index],
+                keys=[self._key(session.id), self._index, self._owned(session.owner)],
                 args=[
                     session.version,
                     session.owner or "",
@@ -161,6 +176,8 @@ class RedisStore:
                     now + self.ttl,
                     now,
                     self.max_sessions,
+                    session.frame_index,
+                    repr(session.touched),
                 ],
             )
         )
@@ -223,7 +240,7 @@ class RedisStore:
         result = int(
             await self._call(
                 lambda: self._commit(
-                    keys=[self._key(session.id), self._index],
+                    keys=[self._key(session.id), self._index, self._owned(session.owner)],
                     args=[
                         expected,
                         session.version,
@@ -231,6 +248,8 @@ class RedisStore:
                         self._ttl_ms(),
                         session.id,
                         time.time() + self.ttl,
+                        session.frame_index,
+                        repr(session.touched),
                     ],
                 )
             )
@@ -248,7 +267,35 @@ class RedisStore:
         async with self.redis.pipeline(transaction=True) as pipe:
             pipe.delete(self._key(session_id))
             pipe.zrem(self._index, session_id)
+            pipe.zrem(self._owned(owner), session_id)
             await self._call(pipe.execute)
+
+    async def owned(self, owner: str | None, after: str, limit: int) -> list[Listed]:
+        key = self._owned(owner)
+        found: list[Listed] = []
+        start = f"({after}" if after else "-"
+        while len(found) < limit:
+            ids = await self._call(partial(self._ids_from, key, start, limit - len(found)))
+            if not ids:
+                break
+            async with self.redis.pipeline(transaction=False) as pipe:
+                for sid in ids:
+                    pipe.hmget(self._key(sid), ["v", "f", "t"])
+                rows = await self._call(pipe.execute)
+            gone = [sid for sid, (v, _, _) in zip(ids, rows, strict=True) if v is None]
+            found += [
+                Listed(sid, int(f or -1), int(v), float(t or 0.0))
+                for sid, (v, f, t) in zip(ids, rows, strict=True)
+                if v is not None
+            ]
+            if gone:  # expired since: tidy the owner's list as we go
+                await self._call(partial(self.redis.zrem, key, *gone))
+            start = f"({ids[-1]}"
+        return found
+
+    async def _ids_from(self, key: str, start: str, count: int) -> list[str]:
+        """Up to ``count`` ids of the sorted set ``key`` from ``start`` (a lex bound) on."""
+        return [_text(i) for i in await self.redis.zrangebylex(key, start, "+", start=0, num=count)]
 
     async def ping(self) -> bool:
         try:

@@ -74,6 +74,24 @@ class SessionOut(BaseModel):
     expires_at: str = Field(description="ISO 8601 UTC; idle sessions expire")
 
 
+class SessionListed(BaseModel):
+    """A session as a listing shows it."""
+
+    id: str
+    frame_index: int = Field(description="index of the last tracked frame; -1 before any")
+    version: int
+    expires_at: str = Field(description="ISO 8601 UTC; idle sessions expire")
+
+
+class SessionList(BaseModel):
+    """``GET /v1/sessions``: a page of the caller's sessions, in id order."""
+
+    sessions: list[SessionListed]
+    next: str | None = Field(
+        description="the 'after' of the next page (its URL is in the Link header); null: the last"
+    )
+
+
 class ForcesIn(BaseModel):
     """``POST /v1/sessions/{id}/forces``: one force per node."""
 

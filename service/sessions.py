@@ -27,6 +27,11 @@ MODAL_MAX_NODES = 1024
 """Node limit of the O(N^3) modal methods (about 0.3 s per request at 1024)."""
 
 
+def expiry(touched: float, ttl: float) -> str:
+    """When a session last touched at ``touched`` expires, ISO 8601 UTC (``...Z``)."""
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(touched + ttl))
+
+
 def new_id() -> str:
     """An unguessable session id (128 random bits, URL-safe)."""
     return secrets.token_urlsafe(16)
@@ -222,7 +227,6 @@ class Session:
 
     def describe(self, ttl: float) -> dict[str, Any]:
         """The API's view of the session."""
-        expires = time.gmtime(self.touched + ttl)
         return {
             "id": self.id,
             "nodes": self.nodes.tolist(),
@@ -232,5 +236,5 @@ class Session:
             "tracking": self.tracking,
             "frame_index": self.frame_index,
             "version": self.version,
-            "expires_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", expires),
+            "expires_at": expiry(self.touched, ttl),
         }

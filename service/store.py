@@ -12,11 +12,22 @@ import asyncio
 import contextlib
 import time
 from collections.abc import AsyncIterator
+from dataclasses import dataclass
 from typing import Protocol
 
 from service import metrics
 from service.domain_errors import SessionNotFoundError, TooManySessionsError
 from service.sessions import Session
+
+
+@dataclass(frozen=True, slots=True)
+class Listed:
+    """What a listing shows of a session, without loading its tracker."""
+
+    id: str
+    frame_index: int
+    version: int
+    touched: float
 
 
 class SessionStore(Protocol):
@@ -45,6 +56,9 @@ class SessionStore(Protocol):
 
     async def delete(self, session_id: str, owner: str | None) -> None:
         """Remove a session; SessionNotFoundError as for :meth:`lease`."""
+
+    async def owned(self, owner: str | None, after: str, limit: int) -> list[Listed]:
+        """The owner's live sessions with ids after ``after``, in id order, at most ``limit``."""
 
     async def ping(self) -> bool:
         """Whether the store is reachable."""
@@ -129,6 +143,16 @@ class MemoryStore:
     async def delete(self, session_id: str, owner: str | None) -> None:
         self._find(session_id, owner)
         self._drop(session_id)
+
+    async def owned(self, owner: str | None, after: str, limit: int) -> list[Listed]:
+        now = time.time()
+        mine = sorted(
+            sid
+            for sid, s in self._sessions.items()
+            if s.owner == owner and sid > after and not self._expired(s, now)
+        )
+        sessions = (self._sessions[sid] for sid in mine[:limit])
+        return [Listed(s.id, s.frame_index, s.version, s.touched) for s in sessions]
 
     async def ping(self) -> bool:
         return True

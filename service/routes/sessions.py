@@ -6,14 +6,22 @@ import time
 from typing import Annotated, Any
 
 import orjson
-from fastapi import APIRouter, Header, Request, Response, status
+from fastapi import APIRouter, Header, Query, Request, Response, status
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from service import metrics
 from service.deps import CpuDep, OwnerDep, SettingsDep, StoreDep
 from service.errors import ApiError
-from service.schemas import ErrorOut, ForcesIn, ForcesOut, FrameOut, SessionCreate, SessionOut
-from service.sessions import Session
+from service.schemas import (
+    ErrorOut,
+    ForcesIn,
+    ForcesOut,
+    FrameOut,
+    SessionCreate,
+    SessionList,
+    SessionOut,
+)
+from service.sessions import Session, expiry
 from service.settings import Settings
 from service.work import compute, track_encoded
 
@@ -55,6 +63,44 @@ async def create_session(
     response.headers["Location"] = f"/v1/sessions/{session.id}"
     response.headers["ETag"] = f'"{session.version}"'
     return session.describe(settings.session_ttl_seconds)
+
+
+PAGE_SIZE = 50
+"""Sessions per page unless the caller asks for fewer or more (at most :data:`MAX_PAGE`)."""
+MAX_PAGE = 500
+"""Largest page: one listing's reply stays small and quick, even from a shared store."""
+
+
+@router.get("", response_model=SessionList, responses=ERRORS)
+async def list_sessions(
+    request: Request,
+    response: Response,
+    owner: OwnerDep,
+    settings: SettingsDep,
+    store: StoreDep,
+    limit: Annotated[int, Query(ge=1, le=MAX_PAGE, description="sessions per page")] = PAGE_SIZE,
+    after: Annotated[
+        str, Query(max_length=64, description="list the ids after this one (the previous 'next')")
+    ] = "",
+) -> dict[str, Any]:
+    """The caller's sessions (those of its API key), in id order, a page at a time."""
+    found = await store.owned(owner, after, limit + 1)
+    page, more = found[:limit], len(found) > limit
+    ttl = settings.session_ttl_seconds
+    sessions = [
+        {
+            "id": s.id,
+            "frame_index": s.frame_index,
+            "version": s.version,
+            "expires_at": expiry(s.touched, ttl),
+        }
+        for s in page
+    ]
+    following = page[-1].id if more else None
+    if following is not None:
+        url = request.url.include_query_params(after=following, limit=limit)
+        response.headers["Link"] = f'<{url.path}?{url.query}>; rel="next"'
+    return {"sessions": sessions, "next": following}
 
 
 @router.get("/{session_id}", response_model=SessionOut, responses=ERRORS)

@@ -168,3 +168,14 @@ class TestWithoutKeys:
         sid = create(client, {})
         assert client.get(f"/v1/sessions/{sid}", headers=A).status_code == 200
         assert client.get(f"/v1/sessions/{sid}").status_code == 200
+
+
+def test_a_listing_shows_only_the_callers_sessions(client: TestClient) -> None:
+    mine = sorted(create(client, A) for _ in range(3))
+    theirs = create(client, B)
+    listed = client.get("/v1/sessions", headers=A)
+    assert listed.status_code == 200
+    assert [s["id"] for s in listed.json()["sessions"]] == mine
+    assert [s["id"] for s in client.get("/v1/sessions", headers=B).json()["sessions"]] == [theirs]
+    assert client.get("/v1/sessions").status_code == 401
+    assert client.get("/v1/sessions", headers={"authorization": "Bearer nope"}).status_code == 401

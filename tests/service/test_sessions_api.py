@@ -157,6 +157,36 @@ def test_get_returns_the_session(client: TestClient) -> None:
     assert body["id"] == sid
 
 
+def test_list_sessions_a_page_at_a_time(client: TestClient) -> None:
+    ids = sorted(create(client)["id"] for _ in range(5))
+    client.post(f"/v1/sessions/{ids[0]}/frames", content=encoded("jpeg"))
+    seen: list[dict[str, Any]] = []
+    url: str | None = "/v1/sessions?limit=2"
+    pages = 0
+    while url is not None:
+        response = client.get(url)
+        assert response.status_code == 200
+        body = response.json()
+        seen += body["sessions"]
+        pages += 1
+        link = response.headers.get("link")
+        assert (link is None) == (body["next"] is None)
+        url = None if link is None else re.fullmatch(r'<(.+)>; rel="next"', link)[1]  # type: ignore[index]
+    assert pages == 3
+    assert [s["id"] for s in seen] == ids
+    first = seen[0]
+    assert (first["frame_index"], first["version"]) == (0, 2)
+    assert first["expires_at"] == client.get(f"/v1/sessions/{ids[0]}").json()["expires_at"]
+    after = client.get("/v1/sessions", params={"after": ids[2]}).json()
+    assert [s["id"] for s in after["sessions"]] == ids[3:]
+    assert after["next"] is None
+
+
+@pytest.mark.parametrize("query", ["limit=0", "limit=501", "limit=x", "after=" + "a" * 65])
+def test_list_sessions_rejects_bad_paging(client: TestClient, query: str) -> None:
+    error_of(client.get(f"/v1/sessions?{query}"), 422)
+
+
 def test_delete(client: TestClient) -> None:
     sid = create(client)["id"]
     response = client.delete(f"/v1/sessions/{sid}")
@@ -184,9 +214,9 @@ def test_method_not_allowed_lists_the_allowed_methods(client: TestClient) -> Non
     error_of(response, 405)
     allowed = {m.strip() for m in response.headers["allow"].split(",")}
     assert {"GET", "DELETE"} <= allowed
-    response = client.get("/v1/sessions")
+    response = client.put("/v1/sessions", json={})
     error_of(response, 405)
-    assert "POST" in response.headers["allow"]
+    assert {"GET", "POST"} <= {m.strip() for m in response.headers["allow"].split(",")}
 
 
 # -- forces -----------------------------------------------------------------------------------

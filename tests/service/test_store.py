@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import secrets
+import time
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
 
@@ -145,6 +146,36 @@ async def test_owner_isolation(make_store: Stores) -> None:
         await store.delete(mine.id, "bob")
     assert await store.count() == 2
     assert await status_of_lease(store, mine.id, "alice") == 200
+
+
+async def test_owned_lists_an_owners_live_sessions_in_pages(make_store: Stores) -> None:
+    store = make_store(ttl=1.0)
+    alice = [session("alice") for _ in range(5)]
+    for s in [*alice, session("bob"), session(None)]:
+        s.touched = time.time()  # made now, not when its tracker was built
+        await store.add(s)
+    ids = sorted(s.id for s in alice)
+    listed = await store.owned("alice", "", 10)
+    assert [s.id for s in listed] == ids
+    assert all((s.frame_index, s.version) == (-1, 1) for s in listed)
+    # pages: ids after the last one seen
+    first = await store.owned("alice", "", 2)
+    rest = await store.owned("alice", first[-1].id, 10)
+    assert [s.id for s in first + rest] == ids
+    assert [s.id for s in await store.owned("bob", "", 10)] != ids
+    assert len(await store.owned(None, "", 10)) == 1  # anonymous ones are their own owner's
+    # a change shows, a deleted or expired session does not
+    async with store.lease(ids[0], "alice") as leased:
+        leased.apply_forces([(1.0, 0.0)] * 4)
+    await store.delete(ids[1], "alice")
+    listed = await store.owned("alice", "", 10)
+    assert [s.id for s in listed] == [ids[0], *ids[2:]]
+    assert listed[0].version == 2
+    await asyncio.sleep(0.5)
+    async with store.lease(ids[2], "alice"):  # keeps this one alive
+        pass
+    await asyncio.sleep(0.7)
+    assert [s.id for s in await store.owned("alice", "", 10)] == [ids[2]]
 
 
 async def test_delete(make_store: Stores) -> None:
