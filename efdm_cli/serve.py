@@ -50,6 +50,7 @@ def run(args: argparse.Namespace, out: Any) -> None:
         from uvicorn.config import STARTUP_FAILURE
 
         from service.app import create_app
+        from service.redaction import install as redact_logs
         from service.settings import Settings
         from service.shutdown import GracefulServer
     except ImportError as exc:
@@ -74,6 +75,9 @@ def run(args: argparse.Namespace, out: Any) -> None:
         ws_ping_timeout=20.0,
         timeout_graceful_shutdown=GRACE_SECONDS,
     )
+    redact_logs(
+        [*settings.api_keys, settings.metrics_key or ""]
+    )  # on the handlers uvicorn's Config has just set up
     server = GracefulServer(config, app.state.streams, drain_seconds=DRAIN_SECONDS)
     previous = signal.signal(signal.SIGTERM, _terminated)
     stopped = False

@@ -33,6 +33,9 @@ class Settings(BaseSettings):
         1, ge=1, description="a WebSocket stream writes its session through every k frames"
     )
     log_level: str = Field("warning", pattern="^(critical|error|warning|info|debug)$")
+    metrics_key: str | None = Field(
+        None, description="when set, /metrics needs 'Authorization: Bearer <this key>'"
+    )
 
     @field_validator("api_keys", mode="before")
     @classmethod

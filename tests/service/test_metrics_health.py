@@ -261,3 +261,15 @@ class TestWithApiKeys:
         assert client.get("/metrics").status_code == 200
         assert client.get("/healthz").status_code == 200
         assert client.get("/readyz").status_code == 200
+
+
+def test_metrics_can_need_their_own_key() -> None:
+    settings = Settings(metrics_key="scrape-me", api_keys=("client",))
+    with TestClient(create_app(settings)) as client:
+        assert client.get("/metrics").status_code == 401
+        client_key = {"authorization": "Bearer client"}
+        assert client.get("/metrics", headers=client_key).status_code == 401
+        scraper = client.get("/metrics", headers={"authorization": "Bearer scrape-me"})
+        assert scraper.status_code == 200
+        assert "efdm_" in scraper.text
+        assert client.get("/healthz").status_code == 200  # the probes stay open
