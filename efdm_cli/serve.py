@@ -38,6 +38,20 @@ def add_parser(commands: Any) -> None:
     p.set_defaults(handler=run)
 
 
+def banner(settings: Any) -> str:
+    """The one line ``efdm serve`` prints on start: where to look, and what is on."""
+    from urllib.parse import urlsplit
+
+    url = f"http://{settings.host}:{settings.port}"
+    keys = "API keys on" if settings.auth_enabled else "API keys off"
+    if settings.redis_url:
+        where = urlsplit(settings.redis_url)  # host and port only: never a password
+        store = f"sessions in Redis at {where.hostname}:{where.port or 6379}"
+    else:
+        store = "sessions in memory"
+    return f"efdm serve: {url}/ (demo page), /docs (API docs); {keys}; {store}"
+
+
 def run(args: argparse.Namespace, out: Any) -> None:
     """Start uvicorn with the app (blocks until stopped).
 
@@ -75,9 +89,9 @@ def run(args: argparse.Namespace, out: Any) -> None:
         ws_ping_timeout=20.0,
         timeout_graceful_shutdown=GRACE_SECONDS,
     )
-    redact_logs(
-        [*settings.api_keys, settings.metrics_key or ""]
-    )  # on the handlers uvicorn's Config has just set up
+    # on the handlers uvicorn's Config has just set up
+    redact_logs([*settings.api_keys, settings.metrics_key or ""])
+    print(banner(settings), file=out, flush=True)
     server = GracefulServer(config, app.state.streams, drain_seconds=DRAIN_SECONDS)
     previous = signal.signal(signal.SIGTERM, _terminated)
     stopped = False

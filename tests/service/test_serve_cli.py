@@ -19,7 +19,7 @@ def test_efdm_serve_starts_answers_and_stops() -> None:
     proc = subprocess.Popen(
         [sys.executable, "-m", "efdm_cli", "serve", "--port", str(port)],
         env=env,
-        stdout=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
     try:
@@ -44,8 +44,22 @@ def test_efdm_serve_starts_answers_and_stops() -> None:
     finally:
         proc.send_signal(signal.SIGINT)
         try:
-            _, err = proc.communicate(timeout=15)
+            out, err = proc.communicate(timeout=15)
         except subprocess.TimeoutExpired:
             proc.kill()
-            _, err = proc.communicate()
+            out, err = proc.communicate()
     assert proc.returncode == 0, err.decode()
+    # one line on start says where to look and what is on
+    assert out.decode().splitlines() == [
+        f"efdm serve: http://127.0.0.1:{port}/ (demo page), /docs (API docs); "
+        "API keys off; sessions in memory"
+    ]
+
+
+def test_the_banner_names_redis_without_its_password() -> None:
+    from efdm_cli.serve import banner
+    from service.settings import Settings
+
+    line = banner(Settings(redis_url="redis://:hunter2@cache:6380/0", api_keys=("k",)))
+    assert line.endswith("API keys on; sessions in Redis at cache:6380")
+    assert "hunter2" not in line
