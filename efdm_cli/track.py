@@ -85,17 +85,22 @@ def parse_circle(text: str) -> tuple[float, float, float]:
     return values[0], values[1], values[2]
 
 
-def _read_mask(path: str) -> NDArray[np.bool_]:
-    """Object pixels of a mask image: non-zero in any colour channel (alpha is ignored)."""
+def _read_mask(path: str, label: int | None) -> NDArray[np.bool_]:
+    """The object's pixels in a binary mask or label image (:mod:`efdm_cli._masks`)."""
     import cv2
 
     from efdm_cli._io import read_image
+    from efdm_cli._masks import MaskError, object_mask
 
     image = read_image(path, cv2.IMREAD_UNCHANGED)
-    if image.ndim == 3:
-        image = image[..., : 3 if image.shape[2] >= 3 else 1]
-        return np.asarray((image != 0).any(axis=2))
-    return np.asarray(image != 0)
+    if image.dtype != np.uint8:
+        raise CliError(f"mask {path} must be 8-bit (got {image.dtype})", EXIT_INVALID)
+    with open(path, "rb") as f:
+        head = f.read(16)
+    try:
+        return object_mask(head, image, f"mask {path}", label)
+    except MaskError as exc:
+        raise CliError(str(exc), EXIT_INVALID) from None
 
 
 def initial_contour(args: argparse.Namespace, size: tuple[int, int]) -> Nodes:
@@ -122,6 +127,8 @@ def initial_contour(args: argparse.Namespace, size: tuple[int, int]) -> Nodes:
         raise CliError(f"give exactly one of {', '.join(_INIT_OPTIONS)} (got {got})", EXIT_INVALID)
     if args.nodes < 3:
         raise CliError(f"--nodes must be at least 3; got {args.nodes}", EXIT_INVALID)
+    if getattr(args, "label", None) is not None and args.init_mask is None:
+        raise CliError("--label chooses an object of --init-mask: give --init-mask", EXIT_INVALID)
     width, height = size
     if args.init_circle is not None:
         cx, cy, r = parse_circle(args.init_circle)
@@ -129,7 +136,7 @@ def initial_contour(args: argparse.Namespace, size: tuple[int, int]) -> Nodes:
     elif args.init_polygon is not None:
         nodes = resample(parse_polygon(args.init_polygon), args.nodes, closed=True)
     else:
-        mask = _read_mask(args.init_mask)
+        mask = _read_mask(args.init_mask, getattr(args, "label", None))
         if mask.shape != (height, width):
             raise CliError(
                 f"mask {args.init_mask} is {mask.shape[1]} x {mask.shape[0]}, "
@@ -286,7 +293,18 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     t.add_argument("input", help='video file, folder of images, or glob such as "frames/*.png"')
     init = t.add_argument_group("initial contour on the first frame (exactly one)")
-    init.add_argument("--init-mask", metavar="PNG", help="largest outer contour of non-zero pixels")
+    init.add_argument(
+        "--init-mask",
+        metavar="PNG",
+        help="binary mask or label image (8-bit grey, or palette PNG as DAVIS-2017): "
+        "the largest outer contour of the object's pixels",
+    )
+    init.add_argument(
+        "--label",
+        type=int,
+        metavar="K",
+        help="with --init-mask: the object of label K (needed when the mask has several)",
+    )
     init.add_argument("--init-polygon", metavar='"X,Y X,Y ..."', help="polygon, >= 3 points")
     init.add_argument("--init-circle", metavar="CX,CY,R", help="circle, centre and radius")
     t.add_argument(

@@ -121,6 +121,11 @@ class FrameOut(BaseModel):
     status: Literal["tracking", "uncertain", "lost"] = Field(
         description="tracking: on the object; uncertain: may be off; lost: most likely not on it"
     )
+    reset: str | None = Field(
+        None,
+        description="set when this frame restarted tracking, saying why (e.g. the frame size "
+        "changed); the contour is then the previous one, as on a first frame",
+    )
     version: int
     elapsed_ms: float
 

@@ -19,12 +19,21 @@ from engine.geometry import circle_nodes
 from engine.physics import MODAL_METHODS
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
 from service.schemas import LIMIT, SessionCreate
+from service.units import TIMES
 
 NEAR_LIMIT = 1e6
 """Pixels within the coordinate limit where a frame's step is undoable: far more
 than a tracker moves a contour in one frame."""
 MODAL_MAX_NODES = 1024
 """Node limit of the O(N^3) modal methods (about 0.3 s per request at 1024)."""
+
+
+def _size(value: Any) -> tuple[int, int] | None:
+    """A stored ``[width, height]`` (None: no frame yet, or a record from before it was kept)."""
+    if value is None:
+        return None
+    width, height = value
+    return int(width), int(height)
 
 
 def expiry(touched: float, ttl: float) -> str:
@@ -57,6 +66,7 @@ class Session:
     version: int = 1
     touched: float = field(default_factory=time.time)
     tracker: Tracker | None = None
+    frame_size: tuple[int, int] | None = None  # (width, height) of the last frame tracked
 
     @classmethod
     def create(cls, spec: SessionCreate, owner: str | None, max_nodes: int) -> Session:
@@ -171,6 +181,15 @@ class Session:
             raise InvalidInputError(
                 f"the tracked contour would lie beyond +-{LIMIT:g} px; the session is unchanged"
             )
+        size = (int(frame.shape[1]), int(frame.shape[0]))
+        reset = None
+        if self.frame_size is not None and size != self.frame_size:
+            (w0, h0), (w, h) = self.frame_size, size
+            reset = (
+                f"frame size changed from {w0}{TIMES}{h0} to {w}{TIMES}{h}: "
+                "tracking restarted from the current contour"
+            )
+        self.frame_size = size
         self.frame_index += 1
         self.nodes = result.nodes
         self.rest = result.nodes.copy()
@@ -182,6 +201,7 @@ class Session:
             "converged": result.converged,
             "confidence": result.confidence,
             "status": result.status,
+            "reset": reset,
             "version": self.version,
             "elapsed_ms": (time.perf_counter() - start) * 1e3,
         }
@@ -200,6 +220,7 @@ class Session:
             "frame_index": self.frame_index,
             "version": self.version,
             "touched": self.touched,
+            "frame_size": None if self.frame_size is None else list(self.frame_size),
             "tracker": None if self.tracker is None else self.tracker.to_state(),
         }
 
@@ -221,8 +242,9 @@ class Session:
                 version=int(record["version"]),
                 touched=float(record["touched"]),
                 tracker=None if state is None else Tracker.from_state(state),
+                frame_size=_size(record.get("frame_size")),
             )
-        except (KeyError, TypeError) as exc:
+        except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"malformed session record: {exc}") from None
 
     def describe(self, ttl: float) -> dict[str, Any]:

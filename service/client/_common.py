@@ -143,6 +143,8 @@ class FrameResult:
     dropped : int
         Frames the stream skipped since the previous result (realtime
         streaming only; always 0 over REST and with ``max_in_flight=1``).
+    reset : str or None
+        Why this frame restarted tracking (the frame size changed), or None.
     """
 
     frame_index: int
@@ -154,6 +156,7 @@ class FrameResult:
     elapsed_ms: float
     dropped: int = 0
     status: str = "tracking"
+    reset: str | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -343,6 +346,7 @@ def parse_frame(data: Mapping[str, Any]) -> FrameResult:
         elapsed_ms=float(data["elapsed_ms"]),
         dropped=int(data.get("dropped", 0)),
         status=str(data.get("status", "tracking")),
+        reset=None if data.get("reset") is None else str(data["reset"]),
     )
 
 

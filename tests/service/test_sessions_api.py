@@ -350,10 +350,12 @@ def test_frames_raw(client: TestClient, kind: str, media_type: str) -> None:
         "converged",
         "confidence",
         "status",
+        "reset",
         "version",
         "elapsed_ms",
     }
     assert out["status"] == "tracking"  # the first frame returns the contour as given
+    assert out["reset"] is None
     assert (out["frame_index"], out["version"]) == (0, 2)
     assert len(out["nodes"]) == 64
     assert isinstance(out["iterations"], int)
@@ -524,3 +526,21 @@ def test_malformed_json_is_a_400_saying_where(client: TestClient, body: bytes, w
     assert error["code"] == "bad_json"
     assert "not valid JSON" in error["message"]
     assert where in error["message"]
+
+
+def test_a_frame_of_another_size_says_tracking_restarted(client: TestClient) -> None:
+    sid = create(client)["id"]
+    assert post_frame(client, sid, encoded("png")).json()["reset"] is None
+    before = post_frame(client, sid, encoded("png", 163)).json()
+    assert before["reset"] is None
+    bigger = cv2.resize(bgr(encoded("png")), (400, 300))
+    ok, data = cv2.imencode(".png", bigger)
+    assert ok
+    result = post_frame(client, sid, data.tobytes(), "image/png")
+    assert result.status_code == 200
+    assert result.json()["reset"] == (
+        "frame size changed from 320\u00d7240 to 400\u00d7300: "
+        "tracking restarted from the current contour"
+    )
+    assert result.json()["nodes"] == before["nodes"]  # as on a first frame: the contour as it was
+    assert post_frame(client, sid, data.tobytes(), "image/png").json()["reset"] is None
