@@ -17,7 +17,7 @@ from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
 
 import engine
-from service import errors
+from service import docs_pages, errors
 from service.limits import BodyLimit
 from service.routes import health, sessions, stream
 from service.settings import Settings
@@ -87,6 +87,9 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
             "Coordinates are [x, y] pixels (x = column, y = row), as in OpenCV."
         ),
         lifespan=lifespan,
+        docs_url=None,  # served from the package instead (service.docs_pages): no CDN
+        redoc_url=None,
+        swagger_ui_parameters={"validatorUrl": None},  # no badge fetched from swagger.io
     )
     app.state.settings = settings
     app.state.store = store or make_store(settings)
@@ -99,6 +102,7 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
     app.include_router(sessions.router)
     app.include_router(stream.router)
     app.include_router(health.router)
+    docs_pages.install(app)
 
     if (STATIC / "index.html").is_file():
         app.mount("/static", StaticFiles(directory=STATIC), name="static")

@@ -377,3 +377,25 @@ class TestWithApiKeys:
         snapshot = wait_for_tracking(page, disc, results=3)
         assert page.is_hidden("#error")
         stop(page, live_server.url, snapshot["sessionId"], key="demo-key")
+
+
+@pytest.mark.parametrize(("path", "rendered"), [("/docs", ".swagger-ui .info"), ("/redoc", "h1")])
+def test_the_api_docs_render_with_no_request_leaving_the_machine(
+    page: Page, live_server: LiveServer, path: str, rendered: str
+) -> None:
+    """Swagger UI and ReDoc came from a CDN: blank on an air-gapped machine."""
+    outside: list[str] = []
+
+    def only_local(route: Any) -> None:
+        url = route.request.url
+        if url.startswith((live_server.url, "data:", "blob:")):
+            route.continue_()
+        else:
+            outside.append(url)
+            route.abort()
+
+    page.route("**/*", only_local)
+    page.goto(f"{live_server.url}{path}")
+    page.locator(rendered).first.wait_for(state="visible")
+    assert "efdm-tracker" in page.locator(rendered).first.inner_text()
+    assert outside == []

@@ -544,3 +544,15 @@ def test_a_frame_of_another_size_says_tracking_restarted(client: TestClient) -> 
     )
     assert result.json()["nodes"] == before["nodes"]  # as on a first frame: the contour as it was
     assert post_frame(client, sid, data.tobytes(), "image/png").json()["reset"] is None
+
+
+@pytest.mark.parametrize("path", ["/docs", "/redoc"])
+def test_the_api_docs_reference_no_other_host(client: TestClient, path: str) -> None:
+    page = client.get(path)
+    assert page.status_code == 200
+    assert not re.findall(r"(?:https?:)?//[a-z0-9.-]+\.[a-z]{2,}", page.text)  # no CDN, no fonts
+    assets = re.findall(r'(?:src|href)="([^"]+)"', page.text)
+    assert assets
+    for asset in assets:
+        assert asset.startswith("/docs-assets/")
+        assert client.get(asset).status_code == 200
