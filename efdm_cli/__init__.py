@@ -8,6 +8,9 @@ Sub-commands:
 ``efdm track``
     Follow a contour through a video, a folder of images or a glob pattern;
     one JSON record per frame (:mod:`efdm_cli.track`).
+``efdm eval``
+    Score predicted masks against ground truth with the DAVIS measures J and F
+    (:mod:`efdm_cli.evaluate`).
 ``efdm serve``
     The HTTP/WebSocket tracking service (:mod:`efdm_cli.serve`; imports the
     web stack only when run).
@@ -30,6 +33,7 @@ import sys
 from collections.abc import Sequence
 
 from efdm_cli import deform as _deform
+from efdm_cli import evaluate as _evaluate
 from efdm_cli import serve as _serve
 from efdm_cli import track as _track
 from efdm_cli._common import EXIT_INVALID, EXIT_IO, EXIT_MISSING, EXIT_OK, CliError
@@ -54,6 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _deform.add_parser(commands)
     _track.add_parser(commands)
+    _evaluate.add_parser(commands)
     _serve.add_parser(commands)
     return parser
 

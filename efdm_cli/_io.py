@@ -162,6 +162,43 @@ def check_size(name: str, index: int, frame: Image, size: tuple[int, int]) -> No
         )
 
 
+class MaskWriter:
+    """Each frame's contour as a binary PNG mask (0/255) in a folder.
+
+    Parameters
+    ----------
+    folder : str
+        Created if missing.
+    named : bool
+        Name each mask after its input image (``frames/00012.jpg`` ->
+        ``00012.png``); else after the frame's index, five digits as DAVIS.
+
+    Raises
+    ------
+    CliError
+        :data:`EXIT_IO` when the folder or a mask cannot be written.
+    """
+
+    def __init__(self, folder: str, *, named: bool) -> None:
+        self.folder, self.named = Path(folder), named
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CliError(f"cannot create {folder}: {exc.strerror or exc}", EXIT_IO) from None
+
+    def write(
+        self, name: str, index: int, nodes: NDArray[np.float64], shape: tuple[int, int]
+    ) -> None:
+        """Write frame ``index`` (input ``name``) of size ``shape`` (height, width)."""
+        from engine.geometry import contour_to_mask
+
+        stem = Path(name).stem if self.named else f"{index:05d}"
+        path = self.folder / f"{stem}.png"
+        mask = (contour_to_mask(nodes, shape) > 0).astype(np.uint8) * 255
+        if not cv2.imwrite(str(path), mask):
+            raise CliError(f"cannot write {path}", EXIT_IO)
+
+
 class OverlayWriter:
     """A video of the frames with the tracked contour drawn over them.
 

@@ -204,7 +204,7 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
     CliError
         With :data:`EXIT_IO` or :data:`EXIT_INVALID`.
     """
-    from efdm_cli._io import OverlayWriter, check_size, open_frames
+    from efdm_cli._io import ImageFrames, MaskWriter, OverlayWriter, check_size, open_frames
     from efdm_cli._progress import Progress
     from engine.physics.recursive import warm_up
     from engine.tracking.tracker import Tracker
@@ -236,6 +236,9 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
                 raise CliError(f"cannot write {args.out}: {exc.strerror}", EXIT_IO) from None
         if args.overlay is not None:
             overlay = OverlayWriter(args.overlay, source.fps, size)
+        masks = None
+        if args.masks_out is not None:
+            masks = MaskWriter(args.masks_out, named=isinstance(source, ImageFrames))
         progress = Progress(source.total, sys.stderr, enabled=not args.quiet)
         index = 0
         item: tuple[str, NDArray[np.uint8]] | None = first
@@ -261,6 +264,8 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
                 raise CliError(f"cannot write {target}: {exc.strerror}", EXIT_IO) from None
             if overlay is not None:
                 overlay.write(frame, np.asarray(result.nodes), index, float(result.confidence))
+            if masks is not None:
+                masks.write(name, index, np.asarray(result.nodes), (height, width))
             index += 1
             progress.update(index)
             item = next(frames, None)
@@ -307,6 +312,12 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     init.add_argument("--init-polygon", metavar='"X,Y X,Y ..."', help="polygon, >= 3 points")
     init.add_argument("--init-circle", metavar="CX,CY,R", help="circle, centre and radius")
+    t.add_argument(
+        "--masks-out",
+        metavar="DIR",
+        help="also write each frame's mask (PNG, 0/255) to DIR, named like the input "
+        "images (DAVIS layout; a video's frames as 00000.png, 00001.png, ...)",
+    )
     t.add_argument(
         "--nodes",
         "-n",

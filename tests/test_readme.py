@@ -1,8 +1,8 @@
 """The README's examples run as written: its Python and its shell.
 
 Each fenced ``python`` or ``bash`` block runs, in a fresh temporary folder that
-holds the files the examples name (a ``clip.mp4``, a ``frames/`` folder, a
-``first_mask.png``, ``forces.json``, ``batch.npy``), with this environment's
+holds the files the examples name (a ``clip.mp4``, a ``frames/`` folder and
+its ``masks/``, a ``first_mask.png``, ``forces.json``, ``batch.npy``), with this environment's
 ``efdm`` first on the PATH.  A block right after a comment
 ``<!-- readme-test: server ... -->`` runs against a live ``efdm serve`` (the
 README's ``http://127.0.0.1:8000`` pointed at it); one after
@@ -52,10 +52,12 @@ def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """A folder with every file the examples name; the current directory meanwhile."""
     writer = cv2.VideoWriter(str(tmp_path / "clip.mp4"), cv2.VideoWriter.fourcc(*"mp4v"), 25, SIZE)
     (tmp_path / "frames").mkdir()
+    (tmp_path / "masks").mkdir()
     for i in range(FRAMES):
         frame, mask = disc(i)
         writer.write(frame)
         cv2.imwrite(str(tmp_path / "frames" / f"{i:05d}.jpg"), frame)
+        cv2.imwrite(str(tmp_path / "masks" / f"{i:05d}.png"), mask)
         if i == 0:
             cv2.imwrite(str(tmp_path / "first_mask.png"), mask)
     writer.release()
