@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import pytest
 
 from tests.conftest import skip_groups
 
 
-def report(nodeid: str, outcome: str, reason: str = "") -> pytest.TestReport:
+def report(
+    nodeid: str, outcome: Literal["passed", "failed", "skipped"], reason: str = ""
+) -> pytest.TestReport:
     longrepr = (nodeid.split("::")[0], 1, f"Skipped: {reason}") if outcome == "skipped" else None
     return pytest.TestReport(nodeid, (nodeid, 1, "t"), {}, outcome, longrepr, "setup")
 

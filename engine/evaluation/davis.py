@@ -15,6 +15,7 @@ Definitions follow the DAVIS evaluation toolkit (``davis2017-evaluation``):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -133,9 +134,7 @@ class SequenceScore:
     f_frames: tuple[float, ...]
 
 
-def score_sequence(
-    predictions: list[NDArray[np.generic]], truths: list[NDArray[np.generic]]
-) -> SequenceScore:
+def score_sequence(predictions: Sequence[ArrayLike], truths: Sequence[ArrayLike]) -> SequenceScore:
     """Score a sequence's masks, its first and last frame left out (DAVIS protocol).
 
     Raises

@@ -42,8 +42,9 @@ def toolkit_f(fg_mask: NDArray[np.bool_], gt_mask: NDArray[np.bool_]) -> float:
 
     bound_pix = np.ceil(0.008 * np.linalg.norm(fg_mask.shape))
     fg_b, gt_b = seg2bmap(fg_mask), seg2bmap(gt_mask)
-    fg_dil = cv2.dilate(fg_b.astype(np.uint8), disk(bound_pix).astype(np.uint8))
-    gt_dil = cv2.dilate(gt_b.astype(np.uint8), disk(bound_pix).astype(np.uint8))
+    kernel = disk(bound_pix).astype(np.uint8)  # type: ignore[no-untyped-call]
+    fg_dil = cv2.dilate(fg_b.astype(np.uint8), kernel)
+    gt_dil = cv2.dilate(gt_b.astype(np.uint8), kernel)
     n_fg, n_gt = np.sum(fg_b), np.sum(gt_b)
     if n_fg == 0 and n_gt > 0:
         precision, recall = 1.0, 0.0
@@ -52,8 +53,8 @@ def toolkit_f(fg_mask: NDArray[np.bool_], gt_mask: NDArray[np.bool_]) -> float:
     elif n_fg == 0 and n_gt == 0:
         precision, recall = 1.0, 1.0
     else:
-        precision = np.sum(fg_b * gt_dil) / float(n_fg)
-        recall = np.sum(gt_b * fg_dil) / float(n_gt)
+        precision = float(np.sum(fg_b * gt_dil)) / float(n_fg)
+        recall = float(np.sum(gt_b * fg_dil)) / float(n_gt)
     return 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
 
 
