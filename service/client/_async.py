@@ -182,6 +182,7 @@ class AsyncClient:
         frames: Iterable[Frame] | AsyncIterable[Frame],
         *,
         max_in_flight: int = 1,
+        mode: str = "latest",
     ) -> AsyncGenerator[FrameResult]:
         """Track frames over the session's WebSocket; see :meth:`Client.stream`.
 
@@ -196,6 +197,8 @@ class AsyncClient:
             none is dropped.  More (realtime): up to this many frames are sent
             ahead; the server skips all but the newest waiting frame and
             results report ``dropped > 0``.
+        mode : str
+            ``"latest"`` (default) or ``"every"``: see :meth:`Client.stream`.
 
         Yields
         ------
@@ -211,8 +214,9 @@ class AsyncClient:
             No result within ``timeout`` seconds.
         """
         pending = c.InFlight(max_in_flight)
+        url = c.stream_url(self.base_url, session, mode)
         try:
-            async with self._connect(session) as ws, contextlib.aclosing(_frames(frames)) as source:
+            async with self._connect(url) as ws, contextlib.aclosing(_frames(frames)) as source:
                 exhausted = False
                 while True:
                     while pending.room and not exhausted:
@@ -236,9 +240,9 @@ class AsyncClient:
                 raise
             raise error from exc
 
-    def _connect(self, session: str | Session) -> connect:
+    def _connect(self, url: str) -> connect:
         return connect(
-            c.stream_url(self.base_url, session),
+            url,
             additional_headers=self._headers,
             user_agent_header=None,
             compression=None,

@@ -231,12 +231,24 @@ def session_path(session: str | Session, suffix: str = "") -> str:
     return f"/v1/sessions/{quote(session_id(session), safe='')}{suffix}"
 
 
-def stream_url(base_url: str, session: str | Session) -> str:
-    """The WebSocket URL of a session's stream, from the HTTP base URL."""
+STREAM_MODES = ("latest", "every")
+
+
+def stream_url(base_url: str, session: str | Session, mode: str = "latest") -> str:
+    """The WebSocket URL of a session's stream, from the HTTP base URL.
+
+    Raises
+    ------
+    ValueError
+        ``mode`` is not ``"latest"`` or ``"every"``.
+    """
+    if mode not in STREAM_MODES:
+        raise ValueError(f"mode must be one of {', '.join(STREAM_MODES)}; got {mode!r}")
     base = base_url.rstrip("/")
     if base.startswith(("http://", "https://")):
         base = "ws" + base.removeprefix("http")
-    return base + session_path(session, "/stream")
+    query = "" if mode == "latest" else f"?mode={mode}"
+    return base + session_path(session, "/stream") + query
 
 
 def headers(api_key: str | None) -> dict[str, str]:

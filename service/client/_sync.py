@@ -232,7 +232,12 @@ class Client:
                 self.delete_session(session)
 
     def stream(
-        self, session: str | Session, frames: Iterable[Frame], *, max_in_flight: int = 1
+        self,
+        session: str | Session,
+        frames: Iterable[Frame],
+        *,
+        max_in_flight: int = 1,
+        mode: str = "latest",
     ) -> Generator[FrameResult]:
         """Track frames over the session's WebSocket.
 
@@ -247,6 +252,11 @@ class Client:
             is answered, exactly as over REST.  More pipelines the sends
             (realtime): when frames arrive faster than the server tracks them
             it skips all but the newest, and results report ``dropped > 0``.
+        mode : str
+            ``"latest"`` (default; a live camera: the newest frame wins, as
+            above) or ``"every"`` (a file: every frame tracked in order, none
+            dropped, whatever ``max_in_flight``; the server reads no further
+            while its queue is full).
 
         Yields
         ------
@@ -263,8 +273,9 @@ class Client:
             No result within ``timeout`` seconds.
         """
         pending = c.InFlight(max_in_flight)
+        url = c.stream_url(self.base_url, session, mode)
         try:
-            with self._connect(session) as ws:
+            with self._connect(url) as ws:
                 source = iter(frames)
                 exhausted = False
                 while True:
@@ -289,9 +300,9 @@ class Client:
                 raise
             raise error from exc
 
-    def _connect(self, session: str | Session) -> ClientConnection:
+    def _connect(self, url: str) -> ClientConnection:
         return connect(
-            c.stream_url(self.base_url, session),
+            url,
             additional_headers=self._headers,
             user_agent_header=None,
             compression=None,

@@ -10,9 +10,18 @@ Protocol (JSON text messages from the server carry a ``type``):
 - a message the server cannot use: ``{"type": "error", "error": {...}}``, and
   the stream goes on.
 
-When frames arrive faster than they are tracked, only the newest waiting
-frame is kept; the others are counted in the next result's ``dropped``.
-Memory per stream is bounded: one waiting frame and a few control messages.
+Two modes, chosen by the query parameter ``mode``:
+
+- ``latest`` (the default, for a live camera): when frames arrive faster than
+  they are tracked, only the newest waiting frame is kept; the others are
+  counted in the next result's ``dropped``.  Memory per stream is bounded:
+  one waiting frame and a few control messages.
+- ``every`` (for a file, annotation): every frame is tracked, in order, none
+  dropped; messages wait in a queue of :data:`EVERY_QUEUE`, and while it is
+  full the server stops reading the socket (back-pressure: the client's sends
+  block).  A ping is answered after the frames sent before it.
+
+An unknown mode closes the stream with 4422.
 Fatal problems close the socket with a code and a reason: 4000 + the
 status a REST call would get (the mapping of :mod:`service.errors`), such
 as 4401 missing or wrong API key, 4404 unknown or expired session, 4503
@@ -50,10 +59,14 @@ from service.work import compute, track_encoded
 router = APIRouter(tags=["stream"])
 
 MAX_PENDING_CONTROL = 16
+EVERY_QUEUE = 4
+"""Messages waiting in ``mode=every`` before the server stops reading: enough to keep
+the tracker busy while the next frame arrives, few enough to bound memory (a few frames)."""
+MODES = ("latest", "every")
 
 
 class Inbox:
-    """The stream's waiting work: the newest frame and a short control queue."""
+    """``mode=latest``: the newest frame and a short control queue."""
 
     def __init__(self) -> None:
         self.frame: bytes | None = None
@@ -61,18 +74,32 @@ class Inbox:
         self.control: deque[dict[str, Any]] = deque()
         self.ready = asyncio.Event()
 
-    def put_frame(self, data: bytes) -> None:
+    async def put_frame(self, data: bytes) -> None:
         if self.frame is not None:
             self.dropped += 1
             metrics.DROPPED.inc()
         self.frame = data
         self.ready.set()
 
-    def put_control(self, message: dict[str, Any]) -> bool:
+    async def put_control(self, message: dict[str, Any]) -> bool:
         if len(self.control) >= MAX_PENDING_CONTROL:
             return False
         self.control.append(message)
         self.ready.set()
+        return True
+
+
+class Queue:
+    """``mode=every``: frames and control messages in arrival order, a bounded queue."""
+
+    def __init__(self) -> None:
+        self.items: asyncio.Queue[tuple[str, Any]] = asyncio.Queue(EVERY_QUEUE)
+
+    async def put_frame(self, data: bytes) -> None:
+        await self.items.put(("frame", data))  # waits while full: the socket is not read
+
+    async def put_control(self, message: dict[str, Any]) -> bool:
+        await self.items.put(("control", message))
         return True
 
 
@@ -98,7 +125,10 @@ async def stream(
 ) -> None:
     """Track a stream of frames (see the module docstring for the protocol)."""
     await websocket.accept()
+    mode = websocket.query_params.get("mode", "latest")
     try:
+        if mode not in MODES:
+            raise InvalidInputError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
         owner = check_key(settings, key)
         held = store.stream(session_id, owner, settings.stream_commit_every)
         lease = await held.__aenter__()
@@ -110,10 +140,13 @@ async def stream(
         return
     metrics.WEBSOCKETS.inc()
     registered = streams.register(websocket)
-    inbox = Inbox()
+    inbox = Inbox() if mode == "latest" else Queue()
     try:
         async with anyio.create_task_group() as tasks:
-            tasks.start_soon(_work, websocket, lease, inbox, registered, cpu, settings)
+            if isinstance(inbox, Inbox):
+                tasks.start_soon(_work, websocket, lease, inbox, registered, cpu, settings)
+            else:
+                tasks.start_soon(_work_every, websocket, lease, inbox, registered, cpu, settings)
             await _receive(websocket, inbox, settings)
             tasks.cancel_scope.cancel()
     except* _FatalError as group:  # task groups raise exception groups
@@ -159,8 +192,8 @@ async def _close(websocket: WebSocket, code: int, reason: str) -> None:
         await websocket.close(code=code, reason=reason[:120])
 
 
-async def _receive(websocket: WebSocket, inbox: Inbox, settings: Settings) -> None:
-    """Read messages until the client goes away; frames replace older frames."""
+async def _receive(websocket: WebSocket, inbox: Inbox | Queue, settings: Settings) -> None:
+    """Read messages until the client goes away, into the mode's inbox."""
     while True:
         message = await websocket.receive()
         if message["type"] == "websocket.disconnect":
@@ -171,7 +204,7 @@ async def _receive(websocket: WebSocket, inbox: Inbox, settings: Settings) -> No
                 raise _FatalError(
                     1009, too_many_bytes("frame", len(data), settings.max_frame_bytes)
                 )
-            inbox.put_frame(data)
+            await inbox.put_frame(data)
         elif text is not None:
             if len(text.encode()) > settings.max_json_bytes:
                 size = len(text.encode())
@@ -190,7 +223,7 @@ async def _receive(websocket: WebSocket, inbox: Inbox, settings: Settings) -> No
                     error_message(InvalidInputError('expected {"forces": [...]} or {"ping": ...}')),
                 )
                 continue
-            if not inbox.put_control(parsed):
+            if not await inbox.put_control(parsed):
                 await _send(
                     websocket,
                     error_message(ApiError(429, "too_many_messages", "too many pending messages")),
@@ -217,6 +250,24 @@ async def _work(
                 data, dropped = inbox.frame, inbox.dropped
                 inbox.frame, inbox.dropped = None, 0
                 await _send(websocket, await _frame(lease, data, dropped, cpu, settings))
+
+
+async def _work_every(
+    websocket: WebSocket,
+    lease: StreamLease,
+    inbox: Queue,
+    registered: Stream,
+    cpu: CapacityLimiter,
+    settings: Settings,
+) -> None:
+    """Process every message in arrival order, frames included."""
+    while True:
+        kind, item = await inbox.items.get()
+        async with registered.in_flight():
+            if kind == "frame":
+                await _send(websocket, await _frame(lease, item, 0, cpu, settings))
+            else:
+                await _send(websocket, await _control(lease, item, cpu))
 
 
 async def _control(

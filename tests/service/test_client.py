@@ -178,6 +178,20 @@ def test_stream_realtime_accounts_for_every_frame(api: Client) -> None:
         list(api.stream(session, data, max_in_flight=0))
 
 
+def test_stream_every_mode_pipelines_without_dropping(api: Client) -> None:
+    """A file, not a camera: every frame tracked, in order, however many are in flight."""
+    data = frames() * 3
+    reference = list(api.track(data, circle=CIRCLE))  # REST: one at a time
+    session = api.create_session(circle=CIRCLE)
+    results = list(api.stream(session, data, max_in_flight=16, mode="every"))
+    assert [r.frame_index for r in results] == list(range(len(data)))
+    assert all(r.dropped == 0 for r in results)
+    for a, b in zip(reference, results, strict=True):
+        assert np.array_equal(a.nodes, b.nodes)
+    with pytest.raises(ValueError, match="mode must be one of latest, every"):
+        list(api.stream(session, data, mode="fastest"))
+
+
 # --- asyncio ---------------------------------------------------------------------------
 
 
@@ -217,6 +231,9 @@ async def test_async_stream_realtime_and_errors(live_server: LiveServer) -> None
         data = frames() * 2
         results = [r async for r in api.stream(session, data, max_in_flight=8)]
         assert sum(1 + r.dropped for r in results) == len(data)
+        every = [r async for r in api.stream(session, data, max_in_flight=8, mode="every")]
+        assert len(every) == len(data)
+        assert all(r.dropped == 0 for r in every)
         with pytest.raises(ApiError) as caught:
             async for _ in api.stream("no-such-session", frames()[:1]):
                 pass

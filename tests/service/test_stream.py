@@ -356,3 +356,30 @@ class TestWithApiKeys:
         with ws_connect(live_server, f"/v1/sessions/{sid}/stream?api_key=key-b") as ws:
             ws.send(json.dumps({"ping": "x"}))
             assert recv(ws) == {"type": "pong", "pong": "x"}
+
+
+def test_mode_every_tracks_every_frame_in_order_pings_in_between(client: TestClient) -> None:
+    """300 frames sent as fast as possible: 300 results, in order, none dropped."""
+    sid = create(client)
+    frames = [disc_frame(160 + (i % 20), 120) for i in range(300)]
+    with client.websocket_connect(f"/v1/sessions/{sid}/stream?mode=every") as ws:
+        for i, frame in enumerate(frames):
+            ws.send_bytes(frame)
+            if i == 149:
+                ws.send_text(json.dumps({"ping": "half-way"}))
+        answers = [receive(ws) for _ in range(301)]
+    kinds = [a["type"] for a in answers]
+    assert kinds.count("frame") == 300
+    assert kinds.index("pong") == 150  # after the 150 frames sent before it
+    results = [a for a in answers if a["type"] == "frame"]
+    assert [r["frame_index"] for r in results] == list(range(300))
+    assert all(r["dropped"] == 0 for r in results)
+    assert client.get(f"/v1/sessions/{sid}").json()["frame_index"] == 299
+
+
+def test_an_unknown_mode_closes_with_4422(client: TestClient) -> None:
+    sid = create(client)
+    with client.websocket_connect(f"/v1/sessions/{sid}/stream?mode=fastest") as ws:
+        closed = closed_by(ws)
+    assert closed.code == 4422
+    assert "mode must be one of latest, every" in closed.reason
