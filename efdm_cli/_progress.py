@@ -56,13 +56,21 @@ class Progress:
         self._done = 0
         self._drawn = -1  # frame count on screen (TTY)
 
+    @property
+    def shown(self) -> bool:
+        """Whether this run reports its progress (a TTY, or a long run to a log)."""
+        return self.tty or self.plain
+
     def text(self, done: int) -> str:
-        """``label: frame done/total (p %), f fps``."""
+        """``label: frame done/total (p %), f fps, ETA t`` (no total: no percentage or ETA)."""
         elapsed = self.clock() - self._start
         fps = done / elapsed if elapsed > 0 else 0.0
         if self.total:
             pct = min(100, 100 * done // self.total)
-            return f"{self.label}: frame {done}/{self.total} ({pct} %), {fps:.1f} fps"
+            line = f"{self.label}: frame {done}/{self.total} ({pct} %), {fps:.1f} fps"
+            if 0 < done < self.total and fps > 0:
+                line += f", ETA {_duration((self.total - done) / fps)}"
+            return line
         return f"{self.label}: frame {done}, {fps:.1f} fps"
 
     def update(self, done: int) -> None:
@@ -106,3 +114,15 @@ class Progress:
         except (OSError, ValueError):
             self.tty = self.plain = False
             self._width = 0
+
+
+def _duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s`` or ``1 h 02 min``."""
+    whole = round(seconds)
+    if whole < 60:
+        return f"{whole} s"
+    minutes, secs = divmod(whole, 60)
+    if minutes < 60:
+        return f"{minutes} min {secs:02d} s"
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes:02d} min"

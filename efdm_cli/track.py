@@ -186,6 +186,18 @@ def _record(index: int, result: StepResult, elapsed_ms: float) -> str:
     )
 
 
+def summary(confidences: list[float], statuses: list[str], seconds: float) -> str:
+    """The closing line of a run: frames, time per frame, confidence, frames lost."""
+    count = len(confidences)
+    worst = int(np.argmin(confidences))
+    lost, unsure = statuses.count("lost"), statuses.count("uncertain")
+    return (
+        f"efdm track: {count} frames in {seconds:.1f} s ({1e3 * seconds / count:.1f} ms per "
+        f"frame); confidence mean {np.mean(confidences):.2f}, worst {confidences[worst]:.2f} "
+        f"(frame {worst}); {lost} reported lost, {unsure} uncertain"
+    )
+
+
 def _silence(stream: TextIO) -> None:
     """Point ``stream``'s file descriptor at /dev/null, so that flushing it at exit is quiet."""
     try:
@@ -241,6 +253,9 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             masks = MaskWriter(args.masks_out, named=isinstance(source, ImageFrames))
         progress = Progress(source.total, sys.stderr, enabled=not args.quiet)
         index = 0
+        confidences: list[float] = []
+        statuses: list[str] = []
+        started = time.perf_counter()
         item: tuple[str, NDArray[np.uint8]] | None = first
         while item is not None:
             name, frame = item
@@ -266,9 +281,14 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
                 overlay.write(frame, np.asarray(result.nodes), index, float(result.confidence))
             if masks is not None:
                 masks.write(name, index, np.asarray(result.nodes), (height, width))
+            confidences.append(float(result.confidence))
+            statuses.append(str(result.status))
             index += 1
             progress.update(index)
             item = next(frames, None)
+        progress.close()
+        if progress.shown:
+            print(summary(confidences, statuses, time.perf_counter() - started), file=sys.stderr)
     finally:
         frames.close()
         if progress is not None:

@@ -95,10 +95,15 @@ def test_long_input_prints_progress_lines(
     argv = ["track", str(frames), "--init-circle", "8,8,3", "-o", str(tmp_path / "t.jsonl")]
     assert main(argv) == 0
     lines = capsys.readouterr().err.splitlines()
-    assert len(lines) == 20
+    assert len(lines) == 21
     assert lines[0].startswith("efdm track: frame 5/100 (5 %), ")
-    assert lines[-1].startswith("efdm track: frame 100/100 (100 %), ")
-    assert lines[-1].endswith(" fps")
+    assert ", ETA " in lines[0]
+    assert lines[-2].startswith("efdm track: frame 100/100 (100 %), ")
+    assert lines[-2].endswith(" fps")  # done: no ETA
+    # the closing summary
+    assert lines[-1].startswith("efdm track: 100 frames in ")
+    assert "ms per frame); confidence mean " in lines[-1]
+    assert lines[-1].endswith(" uncertain")
     assert main([*argv, "--quiet"]) == 0
     assert capsys.readouterr().err == ""
 
@@ -130,9 +135,9 @@ def test_progress_on_a_tty_redraws_one_line() -> None:
     progress.update(10)  # too soon again; drawn by close
     progress.close()
     assert stream.getvalue() == (
-        "\refdm track: frame 2/10 (20 %), 2.0 fps"
-        "\refdm track: frame 9/10 (90 %), 4.5 fps"
-        "\refdm track: frame 10/10 (100 %), 5.0 fps\n"
+        "\refdm track: frame 2/10 (20 %), 2.0 fps, ETA 4 s"
+        "\refdm track: frame 9/10 (90 %), 4.5 fps, ETA 0 s"
+        "\refdm track: frame 10/10 (100 %), 5.0 fps       \n"  # over the longer line
     )
 
 
@@ -202,3 +207,23 @@ def test_progress_on_a_broken_stream_falls_silent() -> None:
         progress.update(i)  # does not raise
     progress.close()
     assert not progress.plain
+
+
+def test_the_summary_line() -> None:
+    from efdm_cli.track import summary
+
+    line = summary([1.0, 0.9, 0.2, 0.7], ["tracking", "tracking", "lost", "uncertain"], 2.0)
+    assert line == (
+        "efdm track: 4 frames in 2.0 s (500.0 ms per frame); confidence mean 0.70, "
+        "worst 0.20 (frame 2); 1 reported lost, 1 uncertain"
+    )
+
+
+@pytest.mark.parametrize(
+    ("seconds", "text"),
+    [(4.4, "4 s"), (59.6, "1 min 00 s"), (185, "3 min 05 s"), (3720, "1 h 02 min")],
+)
+def test_eta_durations(seconds: float, text: str) -> None:
+    from efdm_cli._progress import _duration
+
+    assert _duration(seconds) == text
