@@ -77,6 +77,15 @@ class VersionConflictError(ServiceError):
         super().__init__(message)
 
 
+class StreamReplacedError(ServiceError):
+    """A newer WebSocket stream took this stream's session over (one stream per session)."""
+
+    def __init__(
+        self, message: str = "another stream took the session over (one stream per session)"
+    ) -> None:
+        super().__init__(message)
+
+
 class TooManySessionsError(ServiceError):
     """The store holds as many sessions as it may.
 

@@ -27,6 +27,7 @@ from service.domain_errors import (
     ServiceError,
     SessionNotFoundError,
     StoreUnavailableError,
+    StreamReplacedError,
     TooManySessionsError,
     UnsupportedImageTypeError,
     VersionConflictError,
@@ -59,6 +60,7 @@ HTTP_ERRORS: Mapping[type[ServiceError], tuple[int, str]] = {
     SessionNotFoundError: (404, "not_found"),
     PreconditionFailedError: (412, "version_mismatch"),
     VersionConflictError: (409, "conflict"),
+    StreamReplacedError: (409, "stream_replaced"),
     TooManySessionsError: (429, "too_many_sessions"),
     StoreUnavailableError: (503, "unavailable"),
 }

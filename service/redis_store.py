@@ -6,7 +6,12 @@ version), ``o`` (owner), ``f`` (frame index), ``t`` (last touched) and ``d``
 sorted set ``<prefix>:sessions`` (score = expiry time) counts them for the
 session cap, and one per owner, ``<prefix>:owned:<owner>`` (ids in
 lexicographic order, expiring a TTL after the owner's last change), lists
-them; ids of expired sessions leave it when a listing meets them.  Every change is an atomic
+them; ids of expired sessions leave it when a listing meets them.  An open
+WebSocket stream claims ``<prefix>:stream:<id>`` (a random token, refreshed
+while it is open, expiring :data:`STREAM_CLAIM_SECONDS` after its replica
+stops); a newer stream overwrites the claim, and the older one's next commit,
+which checks the claim in the same script, fails: it is closed as replaced,
+on whichever replica it runs, having changed nothing.  Every change is an atomic
 compare-and-set on the version (Lua): of two replicas changing one session
 at once, one wins and the other gets :class:`VersionConflictError`, so no update
 is lost.  When Redis is unreachable, calls raise :class:`StoreUnavailableError`
@@ -18,6 +23,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import secrets
 import time
 import weakref
 from collections.abc import AsyncIterator, Awaitable, Callable
@@ -33,6 +39,7 @@ from service.domain_errors import (
     ServiceError,
     SessionNotFoundError,
     StoreUnavailableError,
+    StreamReplacedError,
     TooManySessionsError,
     VersionConflictError,
 )
@@ -40,6 +47,16 @@ from service.sessions import Session
 from service.store import Listed
 
 T = TypeVar("T")
+
+STREAM_CLAIM_SECONDS = 30.0
+"""How long a stream's claim on its session outlives its replica (the key's
+expiry, refreshed three times as often while the stream is open)."""
+# KEYS: claim.  ARGV: token, ttl_ms.  Refresh (or drop, ttl_ms 0) only one's own claim.
+_RENEW = """
+if redis.call('GET', KEYS[1]) ~= ARGV[1] then return 0 end
+if tonumber(ARGV[2]) == 0 then return redis.call('DEL', KEYS[1]) end
+return redis.call('PEXPIRE', KEYS[1], ARGV[2])
+"""
 
 # KEYS: session, index, owned.
 # ARGV: version, owner, data, ttl_ms, id, expiry, now, cap, frame index, touched
@@ -53,9 +70,10 @@ redis.call('ZADD', KEYS[3], 0, ARGV[5])
 redis.call('PEXPIRE', KEYS[3], ARGV[4])
 return 1
 """
-# KEYS: session, index, owned.
-# ARGV: expected version, new version, data, ttl_ms, id, expiry, frame index, touched
+# KEYS: session, index, owned, stream claim (or any key when claim is '').
+# ARGV: expected version, new version, data, ttl_ms, id, expiry, frame index, touched, claim
 _COMMIT = """
+if ARGV[9] ~= '' and redis.call('GET', KEYS[4]) ~= ARGV[9] then return -2 end
 local v = redis.call('HGET', KEYS[1], 'v')
 if not v then return -1 end
 if v ~= ARGV[1] then return 0 end
@@ -88,6 +106,7 @@ class _RedisStreamLease:
         self.committed = session.version  # the version Redis holds
         self.pending = 0
         self.lock = store.lock_for(session.id)
+        self.claim = ("", "")  # (key, token) of this stream's claim, once made
 
     @contextlib.asynccontextmanager
     async def turn(self) -> AsyncIterator[Session]:
@@ -101,7 +120,7 @@ class _RedisStreamLease:
 
     async def _commit(self) -> None:
         try:
-            await self.store.commit(self.session, self.committed)
+            await self.store.commit(self.session, self.committed, claim=self.claim)
         except VersionConflictError:  # changed elsewhere: continue from what Redis holds
             self.session = await self.store._load(self.session.id, self.owner)
             self.committed, self.pending = self.session.version, 0
@@ -139,6 +158,7 @@ class RedisStore:
         )
         self._index = f"{prefix}:sessions"
         self._create = self.redis.register_script(_CREATE)
+        self._renew = self.redis.register_script(_RENEW)
         self._commit = self.redis.register_script(_COMMIT)
         # one local lock per session: requests of this replica take turns
         self._locks: weakref.WeakValueDictionary[str, asyncio.Lock] = weakref.WeakValueDictionary()
@@ -212,15 +232,36 @@ class RedisStore:
     async def stream(
         self, session_id: str, owner: str | None, commit_every: int = 1
     ) -> AsyncIterator[_RedisStreamLease]:
-        held = _RedisStreamLease(self, await self._load(session_id, owner), owner, commit_every)
+        session = await self._load(session_id, owner)
+        claim, token = f"{self.prefix}:stream:{session_id}", secrets.token_hex(16)
+        ttl_ms = int(STREAM_CLAIM_SECONDS * 1000)
+        await self._call(partial(self.redis.set, claim, token, px=ttl_ms))  # replaces any older
+        keeper = asyncio.create_task(self._keep_claim(claim, token, ttl_ms))
+        held = _RedisStreamLease(self, session, owner, commit_every)
+        held.claim = (claim, token)
         try:
             yield held
         finally:
+            keeper.cancel()
             with contextlib.suppress(ServiceError):
                 await held.flush()
+            with contextlib.suppress(ServiceError, asyncio.CancelledError):
+                await self._call(partial(self._renew, keys=[claim], args=[token, 0]))
 
-    async def commit(self, session: Session, expected: int) -> None:
+    async def _keep_claim(self, claim: str, token: str, ttl_ms: int) -> None:
+        """Refresh a stream's claim a few times per its lifetime while the stream is open."""
+        while True:
+            await asyncio.sleep(ttl_ms / 3000)
+            with contextlib.suppress(ServiceError):
+                await self._call(partial(self._renew, keys=[claim], args=[token, ttl_ms]))
+
+    async def commit(
+        self, session: Session, expected: int, *, claim: tuple[str, str] = ("", "")
+    ) -> None:
         """Write a session back if nobody changed it since ``expected``.
+
+        With ``claim`` (a stream's claim key and token), only while that
+        stream still holds the session.
 
         Raises
         ------
@@ -228,6 +269,8 @@ class RedisStore:
             The session changed since ``expected`` (on another replica).
         SessionNotFoundError
             The session expired or was deleted meanwhile.
+        StreamReplacedError
+            A newer stream took the session over.
         StoreUnavailableError
             Redis cannot be reached.
         """
@@ -240,7 +283,12 @@ class RedisStore:
         result = int(
             await self._call(
                 lambda: self._commit(
-                    keys=[self._key(session.id), self._index, self._owned(session.owner)],
+                    keys=[
+                        self._key(session.id),
+                        self._index,
+                        self._owned(session.owner),
+                        claim[0] or self._index,
+                    ],
                     args=[
                         expected,
                         session.version,
@@ -250,10 +298,13 @@ class RedisStore:
                         time.time() + self.ttl,
                         session.frame_index,
                         repr(session.touched),
+                        claim[1],
                     ],
                 )
             )
         )
+        if result == -2:
+            raise StreamReplacedError
         if result == -1:
             raise SessionNotFoundError
         if result == 0:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from service import metrics
-from service.domain_errors import SessionNotFoundError, TooManySessionsError
+from service.domain_errors import SessionNotFoundError, StreamReplacedError, TooManySessionsError
 from service.sessions import Session
 
 
@@ -52,6 +52,11 @@ class SessionStore(Protocol):
         A shared store keeps the session in memory for the stream and writes it
         through every ``commit_every`` turns (and at the end), before the
         stream answers, so what a client was told is committed.
+
+        One stream per session, across replicas: a new stream takes the
+        session over, and the one it replaces gets StreamReplacedError at its
+        next turn, before it changes anything (a client whose replica died
+        reconnects at once).
         """
 
     async def delete(self, session_id: str, owner: str | None) -> None:
@@ -83,9 +88,14 @@ class StreamLease(Protocol):
 class _MemoryStreamLease:
     def __init__(self, store: MemoryStore, session_id: str, owner: str | None) -> None:
         self.store, self.session_id, self.owner = store, session_id, owner
+        self.token = object()  # this stream's claim on the session
 
-    def turn(self) -> contextlib.AbstractAsyncContextManager[Session]:
-        return self.store.lease(self.session_id, self.owner)  # the live object itself
+    @contextlib.asynccontextmanager
+    async def turn(self) -> AsyncIterator[Session]:
+        async with self.store.lease(self.session_id, self.owner) as session:  # the live object
+            if self.store._streaming.get(self.session_id) is not self.token:
+                raise StreamReplacedError
+            yield session
 
 
 class MemoryStore:
@@ -96,6 +106,7 @@ class MemoryStore:
         self.ttl = ttl
         self._sessions: dict[str, Session] = {}
         self._locks: dict[str, asyncio.Lock] = {}
+        self._streaming: dict[str, object] = {}  # session -> the token of its newest stream
 
     def _expired(self, session: Session, now: float) -> bool:
         return now - session.touched > self.ttl
@@ -138,7 +149,13 @@ class MemoryStore:
         self, session_id: str, owner: str | None, commit_every: int = 1
     ) -> AsyncIterator[StreamLease]:
         self._find(session_id, owner)
-        yield _MemoryStreamLease(self, session_id, owner)
+        held = _MemoryStreamLease(self, session_id, owner)
+        self._streaming[session_id] = held.token  # a newer stream replaces an older one
+        try:
+            yield held
+        finally:
+            if self._streaming.get(session_id) is held.token:
+                del self._streaming[session_id]
 
     async def delete(self, session_id: str, owner: str | None) -> None:
         self._find(session_id, owner)

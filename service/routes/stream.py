@@ -26,7 +26,12 @@ Fatal problems close the socket with a code and a reason: 4000 + the
 status a REST call would get (the mapping of :mod:`service.errors`), such
 as 4401 missing or wrong API key, 4404 unknown or expired session, 4503
 session store unreachable; 1009 message too large, 1011 unexpected server
-error.  Error messages carry that status and code too.  Coordinates are
+error.  Error messages carry that status and code too.
+
+One stream per session: a new stream on a session takes it over, on any
+replica, and the older stream is closed with 4409 at its next frame or
+forces message, having changed nothing (so a client whose replica died can
+reconnect at once, and two tabs never interleave their frames).  Coordinates are
 ``[x, y]`` pixels.
 """
 
@@ -47,7 +52,12 @@ from pydantic import ValidationError
 from service import metrics
 from service.auth import check_key
 from service.deps import ApiKeyDep, CpuDep, SettingsDep, StoreDep, StreamsDep
-from service.domain_errors import InvalidInputError, ServiceError, SessionNotFoundError
+from service.domain_errors import (
+    InvalidInputError,
+    ServiceError,
+    SessionNotFoundError,
+    StreamReplacedError,
+)
 from service.errors import ApiError, as_api_error
 from service.schemas import ForcesIn
 from service.settings import Settings
@@ -295,7 +305,7 @@ async def _control(
                 "displacements": U.tolist(),
                 "version": session.version,
             }
-    except SessionNotFoundError as exc:  # gone (expired, deleted): the stream ends
+    except (SessionNotFoundError, StreamReplacedError) as exc:  # gone, or taken over: the end
         raise _FatalError.of(exc) from None
     except ServiceError as exc:
         return error_message(exc)
@@ -308,7 +318,7 @@ async def _frame(
     try:
         async with lease.turn() as session:
             result = await track_encoded(cpu, settings, session, data, None)
-    except SessionNotFoundError as exc:  # gone (expired, deleted): the stream ends
+    except (SessionNotFoundError, StreamReplacedError) as exc:  # gone, or taken over: the end
         raise _FatalError.of(exc) from None
     except ServiceError as exc:
         return {**error_message(exc), "dropped": dropped}

@@ -175,3 +175,32 @@ def test_redis_down_means_503_and_recovery_without_restart() -> None:
             assert frame.status_code == 200
     finally:
         redis.stop()
+
+
+def test_a_second_stream_on_another_replica_takes_over_without_409s(
+    redis_server: RedisServer,
+) -> None:
+    """In Redis mode a second stream got 409 on nearly every frame; now, as in memory,
+    the newer stream takes the session over and the older one is closed with 4409."""
+    from websockets.exceptions import ConnectionClosedError
+
+    with replicas(redis_server.url) as (a, b):
+        sid = httpx.post(f"{a.url}/v1/sessions", json=CIRCLE).json()["id"]
+        frames = [disc_frame(160 + 2 * k, 120) for k in range(8)]
+        with connect(f"{a.ws}/v1/sessions/{sid}/stream") as old:
+            old.send(frames[0])
+            assert json.loads(old.recv(timeout=30))["frame_index"] == 0
+            with connect(f"{b.ws}/v1/sessions/{sid}/stream") as new:
+                for k in range(1, 5):
+                    new.send(frames[k])
+                    result = json.loads(new.recv(timeout=30))
+                    assert result["type"] == "frame", result  # never a 409
+                    assert result["frame_index"] == k
+                old.send(frames[5])
+                with pytest.raises(ConnectionClosedError) as closed:
+                    old.recv(timeout=30)
+                assert closed.value.rcvd is not None
+                assert closed.value.rcvd.code == 4409
+                assert httpx.get(f"{b.url}/v1/sessions/{sid}").json()["frame_index"] == 4
+                new.send(frames[5])
+                assert json.loads(new.recv(timeout=30))["frame_index"] == 5

@@ -383,3 +383,21 @@ def test_an_unknown_mode_closes_with_4422(client: TestClient) -> None:
         closed = closed_by(ws)
     assert closed.code == 4422
     assert "mode must be one of latest, every" in closed.reason
+
+
+def test_a_second_stream_takes_the_session_over(client: TestClient) -> None:
+    """The older stream is closed with 4409 at its next frame, having changed nothing."""
+    sid = create(client)
+    with client.websocket_connect(f"/v1/sessions/{sid}/stream") as first:
+        first.send_bytes(disc_frame(160, 120))
+        assert receive(first)["frame_index"] == 0
+        with client.websocket_connect(f"/v1/sessions/{sid}/stream") as second:
+            second.send_bytes(disc_frame(162, 120))
+            assert receive(second)["frame_index"] == 1
+            first.send_bytes(disc_frame(164, 120))
+            closed = closed_by(first)
+            assert closed.code == 4409
+            assert "another stream took the session over" in closed.reason
+            assert client.get(f"/v1/sessions/{sid}").json()["frame_index"] == 1  # unchanged
+            second.send_bytes(disc_frame(164, 120))
+            assert receive(second)["frame_index"] == 2  # the newer stream goes on
