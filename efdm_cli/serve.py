@@ -64,6 +64,7 @@ def run(args: argparse.Namespace, out: Any) -> None:
         from uvicorn.config import STARTUP_FAILURE
 
         from service.app import create_app
+        from service.connections import raise_open_file_limit, server_options
         from service.redaction import install as redact_logs
         from service.settings import Settings
         from service.shutdown import GracefulServer
@@ -76,6 +77,7 @@ def run(args: argparse.Namespace, out: Any) -> None:
 
     overrides = {k: v for k, v in {"host": args.host, "port": args.port}.items() if v is not None}
     settings = Settings(**overrides)
+    raise_open_file_limit()  # many clients, slow ones included, each hold a descriptor
     app = create_app(settings)
     config = uvicorn.Config(
         app,
@@ -88,6 +90,7 @@ def run(args: argparse.Namespace, out: Any) -> None:
         ws_max_size=max(settings.max_frame_bytes, settings.max_json_bytes) + 1024,
         ws_ping_timeout=20.0,
         timeout_graceful_shutdown=GRACE_SECONDS,
+        **server_options(settings),
     )
     # on the handlers uvicorn's Config has just set up
     redact_logs([*settings.api_keys, settings.metrics_key or ""])

@@ -97,7 +97,10 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
     app.state.cpu = CapacityLimiter(settings.workers or os.cpu_count() or 1)
     errors.install(app)
     app.add_middleware(
-        BodyLimit, json_bytes=settings.max_json_bytes, frame_bytes=settings.max_frame_bytes
+        BodyLimit,
+        json_bytes=settings.max_json_bytes,
+        frame_bytes=settings.max_frame_bytes,
+        body_seconds=settings.body_timeout_seconds,
     )
     app.include_router(sessions.router)
     app.include_router(stream.router)

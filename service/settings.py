@@ -33,6 +33,15 @@ class Settings(BaseSettings):
         1, ge=1, description="a WebSocket stream writes its session through every k frames"
     )
     log_level: str = Field("warning", pattern="^(critical|error|warning|info|debug)$")
+    header_timeout_seconds: float = Field(
+        10.0, gt=0, description="a request's headers must arrive within this (slowloris)"
+    )
+    body_timeout_seconds: float = Field(
+        30.0, gt=0, description="longest wait for the next piece of a request's body"
+    )
+    max_connections: int = Field(
+        4096, ge=1, description="concurrent connections and requests; beyond, 503"
+    )
     metrics_key: str | None = Field(
         None, description="when set, /metrics needs 'Authorization: Bearer <this key>'"
     )

@@ -1,0 +1,121 @@
+"""Slow and stuck clients (service.connections, service.limits): they cannot hold the server.
+
+Timeouts here are a second or two, set through the settings: a timeout is
+behaviour, not a speed figure.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Iterator
+
+import httpx
+import pytest
+import uvicorn
+
+from service.app import create_app
+from service.connections import raise_open_file_limit, server_options
+from service.settings import Settings
+from tests.service.conftest import free_port
+
+SLOW_CLIENTS = 1100  # beyond a default file-descriptor limit of 1024
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[str]:
+    """efdm serve's uvicorn options with one-second header and body timeouts."""
+    raise_open_file_limit()  # this process holds both ends of every connection
+    settings = Settings(header_timeout_seconds=1.0, body_timeout_seconds=1.0)
+    port = free_port()
+    config = uvicorn.Config(
+        create_app(settings),
+        host="127.0.0.1",
+        port=port,
+        log_level="warning",
+        **server_options(settings),
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not server.started:
+        assert time.monotonic() < deadline, "uvicorn did not start"
+        assert thread.is_alive(), "uvicorn stopped"
+        time.sleep(0.02)
+    yield f"http://127.0.0.1:{port}"
+    server.should_exit = True
+    thread.join(timeout=10)
+
+
+def half_sent(port: int, count: int) -> list[socket.socket]:
+    """``count`` connections that send part of a request's headers and then nothing."""
+    conns = []
+    for _ in range(count):
+        s = socket.create_connection(("127.0.0.1", port))
+        s.sendall(b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: ")
+        conns.append(s)
+    return conns
+
+
+def closed_by_server(conn: socket.socket, within: float) -> bool:
+    conn.settimeout(within)
+    try:
+        return conn.recv(1) == b""
+    except TimeoutError:
+        return False
+    except OSError:
+        return True  # reset: closed too
+
+
+def test_the_open_file_limit_is_raised_to_the_hard_limit() -> None:
+    import resource
+
+    soft = raise_open_file_limit()
+    assert soft == resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+    hard = resource.getrlimit(resource.RLIMIT_NOFILE)[1]
+    assert soft == hard or hard == resource.RLIM_INFINITY
+
+
+def test_healthz_answers_while_slow_clients_are_cut_off(server: str) -> None:
+    port = int(server.rsplit(":", 1)[1])
+    conns = half_sent(port, SLOW_CLIENTS)
+    try:
+        start = time.monotonic()
+        assert httpx.get(f"{server}/healthz", timeout=5).status_code == 200
+        assert time.monotonic() - start < 1.0
+        # and a new client still gets a session made
+        created = httpx.post(
+            f"{server}/v1/sessions", json={"circle": {"center": [9, 9], "radius": 5}}
+        )
+        assert created.status_code == 201
+        # the server closes the half-sent connections past the header deadline
+        assert all(closed_by_server(c, within=10) for c in conns)
+    finally:
+        for c in conns:
+            c.close()
+
+
+def test_a_body_that_stops_arriving_is_answered_408(server: str) -> None:
+    port = int(server.rsplit(":", 1)[1])
+    with socket.create_connection(("127.0.0.1", port)) as s:
+        s.sendall(
+            b"POST /v1/sessions HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+            b'Content-Length: 100\r\n\r\n{"circle": '
+        )
+        s.settimeout(10)
+        answer = b""
+        while b"\r\n\r\n" not in answer:
+            chunk = s.recv(4096)
+            if not chunk:
+                break
+            answer += chunk
+    assert answer.startswith(b"HTTP/1.1 408")
+
+
+def test_a_kept_alive_connection_gets_a_fresh_deadline_per_request(server: str) -> None:
+    with httpx.Client(base_url=server) as client:
+        for _ in range(3):
+            assert client.get("/healthz").status_code == 200
+            time.sleep(0.6)  # more than the deadline in all, less between requests
