@@ -24,6 +24,7 @@ CASES: list[tuple[d.ServiceError, int, str, dict[str, str]]] = [
     (d.SessionNotFoundError(), 404, "not_found", {}),
     (d.PreconditionFailedError("at version 2, not 1"), 412, "version_mismatch", {}),
     (d.VersionConflictError(), 409, "conflict", {}),
+    (d.StreamReplacedError(), 409, "stream_replaced", {}),
     (d.TooManySessionsError(5), 429, "too_many_sessions", {"Retry-After": "10"}),
     (d.StoreUnavailableError(), 503, "unavailable", {"Retry-After": "1"}),
 ]
