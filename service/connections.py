@@ -11,7 +11,9 @@ until ``/healthz`` was unreachable.  Here:
 - :func:`raise_open_file_limit`: the process's soft limit on open files is
   raised to its hard limit at start;
 - the cap on concurrent connections is uvicorn's ``limit_concurrency``
-  (beyond it a request gets ``503``), set by :func:`server_options`.
+  (beyond it a request gets ``503``), set by :func:`server_options`;
+- a WebSocket stream whose client stopped reading is given up by the route
+  after ``EFDM_WS_SEND_TIMEOUT_SECONDS`` (:mod:`service.routes.stream`).
 
 Request bodies that trickle in are cut off by :class:`service.limits.BodyLimit`.
 """

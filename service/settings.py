@@ -39,6 +39,9 @@ class Settings(BaseSettings):
     body_timeout_seconds: float = Field(
         30.0, gt=0, description="longest wait for the next piece of a request's body"
     )
+    ws_send_timeout_seconds: float = Field(
+        10.0, gt=0, description="a stream whose client reads nothing for this long is closed"
+    )
     max_connections: int = Field(
         4096, ge=1, description="concurrent connections and requests; beyond, 503"
     )

@@ -191,8 +191,13 @@ class ClientGoneError(Exception):
 
 
 async def _send(websocket: WebSocket, message: dict[str, Any]) -> None:
+    """Send, or give the client up if it has read nothing for the send timeout."""
+    settings: Settings = websocket.app.state.settings
     try:
-        await websocket.send_json(message)
+        await asyncio.wait_for(websocket.send_json(message), settings.ws_send_timeout_seconds)
+    except TimeoutError as exc:  # not reading: the stream ends (the server resets the socket)
+        metrics.ERRORS.labels(kind="stuck_client").inc()
+        raise ClientGoneError from exc
     except (WebSocketDisconnect, RuntimeError, OSError) as exc:
         raise ClientGoneError from exc
 

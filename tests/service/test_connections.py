@@ -27,7 +27,9 @@ SLOW_CLIENTS = 1100  # beyond a default file-descriptor limit of 1024
 def server() -> Iterator[str]:
     """efdm serve's uvicorn options with one-second header and body timeouts."""
     raise_open_file_limit()  # this process holds both ends of every connection
-    settings = Settings(header_timeout_seconds=1.0, body_timeout_seconds=1.0)
+    settings = Settings(
+        header_timeout_seconds=1.0, body_timeout_seconds=1.0, ws_send_timeout_seconds=1.0
+    )
     port = free_port()
     config = uvicorn.Config(
         create_app(settings),
@@ -119,3 +121,60 @@ def test_a_kept_alive_connection_gets_a_fresh_deadline_per_request(server: str) 
         for _ in range(3):
             assert client.get("/healthz").status_code == 200
             time.sleep(0.6)  # more than the deadline in all, less between requests
+
+
+def ws_frame(payload: bytes) -> bytes:
+    """A masked binary WebSocket frame, as a client sends it (RFC 6455)."""
+    mask = b"\x01\x02\x03\x04"
+    n = len(payload)
+    if n < 126:
+        head = bytes([0x82, 0x80 | n])
+    elif n < 1 << 16:
+        head = bytes([0x82, 0x80 | 126]) + n.to_bytes(2, "big")
+    else:
+        head = bytes([0x82, 0x80 | 127]) + n.to_bytes(8, "big")
+    return head + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+
+
+def drain(conn: socket.socket) -> None:
+    """Read until the socket fails; an orderly end means the server kept the unsent data."""
+    while True:
+        if not conn.recv(1 << 16):
+            raise AssertionError("closed, not reset: the unsent data was kept")
+
+
+def open_streams(server: str) -> int:
+    text = httpx.get(f"{server}/metrics").text
+    line = next(x for x in text.splitlines() if x.startswith("efdm_websockets_open "))
+    return int(float(line.split()[1]))
+
+
+def test_a_stream_whose_client_never_reads_is_torn_down(server: str) -> None:
+    """Results pile up unread: the server gives the stream up and resets its socket."""
+    from tests.service.conftest import disc_frame
+
+    body = {"circle": {"center": [160, 120], "radius": 40, "count": 4096}}  # big results
+    sid = httpx.post(f"{server}/v1/sessions", json=body).json()["id"]
+    port = int(server.rsplit(":", 1)[1])
+    conn = socket.socket()
+    conn.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # fills at once
+    conn.connect(("127.0.0.1", port))
+    try:
+        conn.sendall(
+            f"GET /v1/sessions/{sid}/stream?mode=every HTTP/1.1\r\nHost: x\r\n"
+            "Upgrade: websocket\r\nConnection: Upgrade\r\n"
+            "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+            "Sec-WebSocket-Version: 13\r\n\r\n".encode()
+        )
+        frame = ws_frame(disc_frame(160, 120))
+        conn.settimeout(5)
+        for _ in range(60):  # about 5 MB of results the client never reads
+            conn.sendall(frame)
+        deadline = time.monotonic() + 30
+        while open_streams(server) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert open_streams(server) == 0  # the stream was given up, its resources freed
+        with pytest.raises((ConnectionResetError, BrokenPipeError)):
+            drain(conn)  # and its socket closed: a reset, what was unsent is dropped
+    finally:
+        conn.close()
