@@ -59,11 +59,12 @@ return redis.call('PEXPIRE', KEYS[1], ARGV[2])
 """
 
 # KEYS: session, index, owned.
-# ARGV: version, owner, data, ttl_ms, id, expiry, now, cap, frame index, touched
+# ARGV: version, owner, data, ttl_ms, id, expiry, now, cap, frame index, touched, own ttl
 _CREATE = """
 redis.call('ZREMRANGEBYSCORE', KEYS[2], '-inf', ARGV[7])
 if redis.call('ZCARD', KEYS[2]) >= tonumber(ARGV[8]) then return 0 end
-redis.call('HSET', KEYS[1], 'v', ARGV[1], 'o', ARGV[2], 'd', ARGV[3], 'f', ARGV[9], 't', ARGV[10])
+redis.call('HSET', KEYS[1], 'v', ARGV[1], 'o', ARGV[2], 'd', ARGV[3], 'f', ARGV[9], 't', ARGV[10],
+           'l', ARGV[11])
 redis.call('PEXPIRE', KEYS[1], ARGV[4])
 redis.call('ZADD', KEYS[2], ARGV[6], ARGV[5])
 redis.call('ZADD', KEYS[3], 0, ARGV[5])
@@ -178,8 +179,8 @@ class RedisStore:
             metrics.ERRORS.labels(kind="store_unavailable").inc()
             raise StoreUnavailableError from exc
 
-    def _ttl_ms(self) -> int:
-        return max(1, int(self.ttl * 1000))
+    def _ttl_ms(self, session: Session) -> int:
+        return max(1, int(session.lifetime(self.ttl) * 1000))
 
     async def add(self, session: Session) -> None:
         data = await anyio.to_thread.run_sync(lambda: json.dumps(session.to_record()))
@@ -191,13 +192,14 @@ class RedisStore:
                     session.version,
                     session.owner or "",
                     data,
-                    self._ttl_ms(),
+                    self._ttl_ms(session),
                     session.id,
-                    now + self.ttl,
+                    now + session.lifetime(self.ttl),
                     now,
                     self.max_sessions,
                     session.frame_index,
                     repr(session.touched),
+                    "" if session.ttl is None else repr(session.ttl),
                 ],
             )
         )
@@ -293,9 +295,9 @@ class RedisStore:
                         expected,
                         session.version,
                         data,
-                        self._ttl_ms(),
+                        self._ttl_ms(session),
                         session.id,
-                        time.time() + self.ttl,
+                        time.time() + session.lifetime(self.ttl),
                         session.frame_index,
                         repr(session.touched),
                         claim[1],
@@ -331,12 +333,12 @@ class RedisStore:
                 break
             async with self.redis.pipeline(transaction=False) as pipe:
                 for sid in ids:
-                    pipe.hmget(self._key(sid), ["v", "f", "t"])
+                    pipe.hmget(self._key(sid), ["v", "f", "t", "l"])
                 rows = await self._call(pipe.execute)
-            gone = [sid for sid, (v, _, _) in zip(ids, rows, strict=True) if v is None]
+            gone = [sid for sid, (v, *_) in zip(ids, rows, strict=True) if v is None]
             found += [
-                Listed(sid, int(f or -1), int(v), float(t or 0.0))
-                for sid, (v, f, t) in zip(ids, rows, strict=True)
+                Listed(sid, int(f or -1), int(v), float(t or 0.0), float(ttl) if ttl else None)
+                for sid, (v, f, t, ttl) in zip(ids, rows, strict=True)
                 if v is not None
             ]
             if gone:  # expired since: tidy the owner's list as we go

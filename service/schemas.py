@@ -52,6 +52,11 @@ class SessionCreate(BaseModel):
     tracking: dict[str, Any] = Field(
         default_factory=dict, description="engine.TrackerOptions fields, e.g. {'stiffness': 40}"
     )
+    ttl_seconds: Annotated[float, Field(gt=0, le=1e9, allow_inf_nan=False)] | None = Field(
+        None,
+        description="idle seconds before the session expires; at most, and by default, the "
+        "server's EFDM_SESSION_TTL_SECONDS (the demo page asks for 120)",
+    )
 
     @model_validator(mode="after")
     def _one_contour(self) -> SessionCreate:

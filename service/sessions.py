@@ -67,6 +67,11 @@ class Session:
     touched: float = field(default_factory=time.time)
     tracker: Tracker | None = None
     frame_size: tuple[int, int] | None = None  # (width, height) of the last frame tracked
+    ttl: float | None = None  # idle seconds to expiry, when shorter than the server's
+
+    def lifetime(self, server_ttl: float) -> float:
+        """Idle seconds before this session expires: its own TTL, at most the server's."""
+        return server_ttl if self.ttl is None else min(self.ttl, server_ttl)
 
     @classmethod
     def create(cls, spec: SessionCreate, owner: str | None, max_nodes: int) -> Session:
@@ -105,6 +110,7 @@ class Session:
             rest=nodes.copy(),
             nodes=nodes.copy(),
             tracker=tracker,
+            ttl=spec.ttl_seconds,
         )
 
     def expect_version(self, wanted: str) -> None:
@@ -221,6 +227,7 @@ class Session:
             "version": self.version,
             "touched": self.touched,
             "frame_size": None if self.frame_size is None else list(self.frame_size),
+            "ttl": self.ttl,
             "tracker": None if self.tracker is None else self.tracker.to_state(),
         }
 
@@ -243,6 +250,7 @@ class Session:
                 touched=float(record["touched"]),
                 tracker=None if state is None else Tracker.from_state(state),
                 frame_size=_size(record.get("frame_size")),
+                ttl=None if record.get("ttl") is None else float(record["ttl"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"malformed session record: {exc}") from None
@@ -258,5 +266,5 @@ class Session:
             "tracking": self.tracking,
             "frame_index": self.frame_index,
             "version": self.version,
-            "expires_at": expiry(self.touched, ttl),
+            "expires_at": expiry(self.touched, self.lifetime(ttl)),
         }

@@ -28,6 +28,7 @@ class Listed:
     frame_index: int
     version: int
     touched: float
+    ttl: float | None = None  # the session's own, when shorter than the store's
 
 
 class SessionStore(Protocol):
@@ -109,7 +110,7 @@ class MemoryStore:
         self._streaming: dict[str, object] = {}  # session -> the token of its newest stream
 
     def _expired(self, session: Session, now: float) -> bool:
-        return now - session.touched > self.ttl
+        return now - session.touched > session.lifetime(self.ttl)
 
     def _drop(self, session_id: str) -> None:
         self._sessions.pop(session_id, None)
@@ -169,7 +170,7 @@ class MemoryStore:
             if s.owner == owner and sid > after and not self._expired(s, now)
         )
         sessions = (self._sessions[sid] for sid in mine[:limit])
-        return [Listed(s.id, s.frame_index, s.version, s.touched) for s in sessions]
+        return [Listed(s.id, s.frame_index, s.version, s.touched, s.ttl) for s in sessions]
 
     async def ping(self) -> bool:
         return True

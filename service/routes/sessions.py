@@ -92,7 +92,7 @@ async def list_sessions(
             "id": s.id,
             "frame_index": s.frame_index,
             "version": s.version,
-            "expires_at": expiry(s.touched, ttl),
+            "expires_at": expiry(s.touched, ttl if s.ttl is None else min(s.ttl, ttl)),
         }
         for s in page
     ]

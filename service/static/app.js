@@ -41,6 +41,8 @@
   const MAX_IN_FLIGHT = clamp(parseInt(params.get("inflight") || "2", 10) || 2, 1, 8);
   const JPEG_QUALITY = 0.8;
   const CIRCLE_NODES = 64;
+  // A demo session expires after two idle minutes (the page also deletes it when closed).
+  const SESSION_TTL_SECONDS = 120;
   const DRAG_PX = 5; // CSS pixels a press must move to become a circle drag
   const FPS_WINDOW_MS = 2000;
 
@@ -540,6 +542,7 @@
             },
           }
         : { nodes: contour.points.map((p) => p.map(r1)) };
+    body.ttl_seconds = SESSION_TTL_SECONDS;
     const key = ui.apiKey.value.trim();
     ui.track.disabled = true;
     setStatus("Creating a session…");

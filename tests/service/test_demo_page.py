@@ -16,7 +16,9 @@ import contextlib
 import math
 import os
 import shutil
+import time
 from collections.abc import Iterator
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -399,3 +401,29 @@ def test_the_api_docs_render_with_no_request_leaving_the_machine(
     page.locator(rendered).first.wait_for(state="visible")
     assert "efdm-tracker" in page.locator(rendered).first.inner_text()
     assert outside == []
+
+
+@pytest.mark.parametrize("leave", ["close", "reload"])
+def test_leaving_the_page_deletes_its_short_lived_session(
+    browser: Browser, live_server: LiveServer, leave: str
+) -> None:
+    """Closing or reloading the page frees its session; demo sessions expire after 2 minutes."""
+    with watched_page(browser) as page:
+        disc, scale, box = open_demo(page, live_server.url)
+        draw_circle(page, disc, scale, box)
+        page.get_by_role("button", name="Track").click()
+        snapshot = wait_for_tracking(page, disc, results=3)
+        session = httpx.get(f"{live_server.url}/v1/sessions/{snapshot['sessionId']}").json()
+        lifetime = datetime.fromisoformat(session["expires_at"]) - datetime.now(UTC)
+        assert 100 < lifetime.total_seconds() <= 121  # the page's 120 s, not the server's 900
+        if leave == "close":
+            page.close(run_before_unload=True)
+        else:
+            page.reload()
+        listed: list[Any] = []
+        for _ in range(100):  # the keep-alive DELETE lands within moments
+            listed = httpx.get(f"{live_server.url}/v1/sessions").json()["sessions"]
+            if not listed:
+                break
+            time.sleep(0.1)
+        assert listed == []

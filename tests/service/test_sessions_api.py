@@ -556,3 +556,17 @@ def test_the_api_docs_reference_no_other_host(client: TestClient, path: str) -> 
     for asset in assets:
         assert asset.startswith("/docs-assets/")
         assert client.get(asset).status_code == 200
+
+
+def test_a_session_may_ask_for_a_shorter_life(client: TestClient, settings: Settings) -> None:
+    def lifetime(body: dict[str, Any]) -> float:
+        expires = datetime.fromisoformat(body["expires_at"])
+        return (expires - datetime.now(UTC)).total_seconds()
+
+    assert 100 < lifetime(create(client, {**CIRCLE, "ttl_seconds": 120})) <= 121
+    longest = settings.session_ttl_seconds
+    assert lifetime(create(client, {**CIRCLE, "ttl_seconds": 1e6})) <= longest + 1  # at most
+    listed = client.get("/v1/sessions").json()["sessions"]
+    assert sorted(round(lifetime(s), -1) for s in listed) == sorted([120.0, round(longest, -1)])
+    for bad in (0, -5, "soon"):
+        error_of(client.post("/v1/sessions", json={**CIRCLE, "ttl_seconds": bad}), 422)

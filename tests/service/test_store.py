@@ -347,3 +347,18 @@ async def test_memory_sweep_spares_a_session_in_use() -> None:
         assert await store.sweep() == 0
     assert await store.count() == 1
     await store.close()
+
+
+async def test_a_session_with_its_own_shorter_ttl_expires_first(make_store: Stores) -> None:
+    store = make_store(ttl=30.0)
+    short = Session.create(
+        SessionCreate(nodes=[(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)], ttl_seconds=0.3), None, 100
+    )
+    long = session()
+    for s in (short, long):
+        s.touched = time.time()
+        await store.add(s)
+    assert {s.ttl for s in await store.owned(None, "", 10)} == {0.3, None}
+    await asyncio.sleep(0.6)
+    assert await status_of_lease(store, short.id, None) == 404
+    assert await status_of_lease(store, long.id, None) == 200
