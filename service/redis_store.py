@@ -15,7 +15,10 @@ on whichever replica it runs, having changed nothing.  Every change is an atomic
 compare-and-set on the version (Lua): of two replicas changing one session
 at once, one wins and the other gets :class:`VersionConflictError`, so no update
 is lost.  When Redis is unreachable, calls raise :class:`StoreUnavailableError`
-and recover by themselves.
+and recover by themselves; every write runs only within a deadline on Redis's
+own clock (:data:`DEADLINE_SHARE`), so a write answered 503 cannot land once a
+stalled Redis resumes, and a stream drops what was refused and goes on from
+what Redis holds.
 """
 
 from __future__ import annotations
@@ -48,6 +51,10 @@ from service.store import Listed
 
 T = TypeVar("T")
 
+DEADLINE_SHARE = 0.8
+"""A write must run within this share of the socket timeout after it was sent, by
+Redis's own clock, or it refuses itself: a write the caller gave up on (and
+answered 503) cannot land later, when a stalled Redis or network resumes."""
 STREAM_CLAIM_SECONDS = 30.0
 """How long a stream's claim on its session outlives its replica (the key's
 expiry, refreshed three times as often while the stream is open)."""
@@ -58,9 +65,15 @@ if tonumber(ARGV[2]) == 0 then return redis.call('DEL', KEYS[1]) end
 return redis.call('PEXPIRE', KEYS[1], ARGV[2])
 """
 
+# Redis's clock in ms, for the deadline check of the scripts that write.
+_NOW_MS = "local t = redis.call('TIME'); local now_ms = t[1] * 1000 + t[2] / 1000\n"
 # KEYS: session, index, owned.
-# ARGV: version, owner, data, ttl_ms, id, expiry, now, cap, frame index, touched, own ttl
-_CREATE = """
+# ARGV: version, owner, data, ttl_ms, id, expiry, now, cap, frame index, touched, own ttl,
+#       deadline (Redis ms)
+_CREATE = (
+    _NOW_MS
+    + """
+if now_ms > tonumber(ARGV[12]) then return -3 end
 redis.call('ZREMRANGEBYSCORE', KEYS[2], '-inf', ARGV[7])
 if redis.call('ZCARD', KEYS[2]) >= tonumber(ARGV[8]) then return 0 end
 redis.call('HSET', KEYS[1], 'v', ARGV[1], 'o', ARGV[2], 'd', ARGV[3], 'f', ARGV[9], 't', ARGV[10],
@@ -71,9 +84,14 @@ redis.call('ZADD', KEYS[3], 0, ARGV[5])
 redis.call('PEXPIRE', KEYS[3], ARGV[4])
 return 1
 """
+)
 # KEYS: session, index, owned, stream claim (or any key when claim is '').
-# ARGV: expected version, new version, data, ttl_ms, id, expiry, frame index, touched, claim
-_COMMIT = """
+# ARGV: expected version, new version, data, ttl_ms, id, expiry, frame index, touched, claim,
+#       deadline (Redis ms)
+_COMMIT = (
+    _NOW_MS
+    + """
+if now_ms > tonumber(ARGV[10]) then return -3 end
 if ARGV[9] ~= '' and redis.call('GET', KEYS[4]) ~= ARGV[9] then return -2 end
 local v = redis.call('HGET', KEYS[1], 'v')
 if not v then return -1 end
@@ -86,6 +104,7 @@ redis.call('ZADD', KEYS[3], 0, ARGV[5])
 redis.call('PEXPIRE', KEYS[3], ARGV[4])
 return 1
 """
+)
 
 
 def _text(value: bytes | str | None) -> str:
@@ -108,10 +127,14 @@ class _RedisStreamLease:
         self.pending = 0
         self.lock = store.lock_for(session.id)
         self.claim = ("", "")  # (key, token) of this stream's claim, once made
+        self.stale = False  # a write failed: the session in memory is ahead of what was stored
 
     @contextlib.asynccontextmanager
     async def turn(self) -> AsyncIterator[Session]:
         async with self.lock:
+            if self.stale:  # what was refused is dropped: go on from what Redis holds
+                self.session = await self.store._load(self.session.id, self.owner)
+                self.committed, self.pending, self.stale = self.session.version, 0, False
             yield self.session
             self.session.touched = time.time()
             if self.session.version != self.committed:
@@ -125,6 +148,9 @@ class _RedisStreamLease:
         except VersionConflictError:  # changed elsewhere: continue from what Redis holds
             self.session = await self.store._load(self.session.id, self.owner)
             self.committed, self.pending = self.session.version, 0
+            raise
+        except StoreUnavailableError:  # answered as an error: it must not be applied later
+            self.stale = True
             raise
         self.committed, self.pending = self.session.version, 0
 
@@ -150,6 +176,8 @@ class RedisStore:
         self.max_sessions = max_sessions
         self.ttl = ttl
         self.prefix = prefix
+        self.timeout = timeout
+        self._offset: float | None = None  # Redis's clock minus ours, s (measured when loading)
         self.redis = redis.from_url(
             url,
             socket_timeout=timeout,
@@ -184,6 +212,7 @@ class RedisStore:
 
     async def add(self, session: Session) -> None:
         data = await anyio.to_thread.run_sync(lambda: json.dumps(session.to_record()))
+        deadline = await self._deadline_ms()
         now = time.time()
         created = await self._call(
             lambda: self._create(
@@ -200,14 +229,30 @@ class RedisStore:
                     session.frame_index,
                     repr(session.touched),
                     "" if session.ttl is None else repr(session.ttl),
+                    deadline,
                 ],
             )
         )
+        if int(created) == -3:  # ran too late: the caller was told 503
+            raise StoreUnavailableError
         if not int(created):
             raise TooManySessionsError(self.max_sessions)
 
+    async def _deadline_ms(self) -> float:
+        """The latest time, on Redis's clock, a write sent now may run (:data:`DEADLINE_SHARE`)."""
+        if self._offset is None:
+            before = time.time()
+            secs, micros = await self._call(self.redis.time)
+            self._offset = secs + micros / 1e6 - (before + time.time()) / 2
+        return (time.time() + self._offset + DEADLINE_SHARE * self.timeout) * 1000
+
     async def _load(self, session_id: str, owner: str | None) -> Session:
-        raw = await self._call(lambda: self.redis.hmget(self._key(session_id), ["o", "d"]))
+        before = time.time()
+        async with self.redis.pipeline(transaction=False) as pipe:
+            pipe.hmget(self._key(session_id), ["o", "d"])
+            pipe.time()
+            raw, (secs, micros) = await self._call(pipe.execute)
+        self._offset = secs + micros / 1e6 - (before + time.time()) / 2
         stored_owner, data = raw
         if data is None or _text(stored_owner) != (owner or ""):
             raise SessionNotFoundError
@@ -282,6 +327,7 @@ class RedisStore:
             if changed
             else ""
         )
+        deadline = await self._deadline_ms()  # counted from the send, not the serialising
         result = int(
             await self._call(
                 lambda: self._commit(
@@ -301,10 +347,13 @@ class RedisStore:
                         session.frame_index,
                         repr(session.touched),
                         claim[1],
+                        deadline,
                     ],
                 )
             )
         )
+        if result == -3:  # ran too late: the caller was told 503
+            raise StoreUnavailableError
         if result == -2:
             raise StreamReplacedError
         if result == -1:

@@ -204,3 +204,38 @@ def test_a_second_stream_on_another_replica_takes_over_without_409s(
                 assert httpx.get(f"{b.url}/v1/sessions/{sid}").json()["frame_index"] == 4
                 new.send(frames[5])
                 assert json.loads(new.recv(timeout=30))["frame_index"] == 5
+
+
+def test_a_stream_frame_refused_during_an_outage_is_never_applied() -> None:
+    """Frames answered 503 while Redis was down were committed once it returned."""
+    redis = RedisServer()
+    try:
+        with replicas(redis.url, count=1) as (a,):
+            sid = httpx.post(f"{a.url}/v1/sessions", json=CIRCLE).json()["id"]
+            with connect(f"{a.ws}/v1/sessions/{sid}/stream") as ws:
+                for k in range(3):
+                    ws.send(disc_frame(160 + 2 * k, 120))
+                    assert json.loads(ws.recv(timeout=30))["frame_index"] == k
+                redis.process.send_signal(signal.SIGSTOP)  # unreachable, its data kept
+                refused = 0
+                for k in range(3, 6):
+                    ws.send(disc_frame(160 + 2 * k, 120))
+                    answer = json.loads(ws.recv(timeout=30))
+                    assert answer["type"] == "error", answer
+                    assert answer["error"]["status"] == 503
+                    refused += 1
+                redis.process.send_signal(signal.SIGCONT)
+                for _ in range(50):
+                    if httpx.get(f"{a.url}/readyz", timeout=5).status_code == 200:
+                        break
+                    time.sleep(0.1)
+                ws.send(disc_frame(172, 120))
+                result = json.loads(ws.recv(timeout=30))
+            assert refused == 3
+            assert result["frame_index"] == 3  # none of the refused frames was applied
+            stored = httpx.get(f"{a.url}/v1/sessions/{sid}").json()
+            assert stored["frame_index"] == 3
+            assert stored["nodes"] == result["nodes"]
+    finally:
+        redis.process.send_signal(signal.SIGCONT)
+        redis.stop()
