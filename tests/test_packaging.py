@@ -8,7 +8,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-ENGINE = {"numpy", "scipy", "numba", "opencv-python-headless", "pymaxflow"}
+ENGINE = {"numpy", "scipy", "numba", "opencv-python-headless", "pymaxflow", "av"}
 WEB = {"fastapi", "uvicorn", "starlette", "pydantic", "pydantic-settings", "redis", "httpx"}
 
 
