@@ -22,6 +22,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from engine.geometry import mask_iou
+
 BOUNDARY_TOLERANCE = 0.008
 """DAVIS's boundary tolerance: a share of the image diagonal (4 px at 480p)."""
 RECALL_ABOVE = 0.5
@@ -33,8 +35,7 @@ def region_similarity(prediction: ArrayLike, truth: ArrayLike) -> float:
     """J: intersection over union of two masks (1.0 when both are empty)."""
     s, g = _binary(prediction), _binary(truth)
     _same_shape(s, g)
-    union = np.count_nonzero(s | g)
-    return 1.0 if union == 0 else np.count_nonzero(s & g) / union
+    return mask_iou(s, g)
 
 
 def boundary_map(mask: ArrayLike) -> NDArray[np.bool_]:

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -11,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import cv2
+import httpx
 import numpy as np
 import pytest
 import uvicorn
@@ -142,3 +147,44 @@ def redis_server() -> Iterator[RedisServer]:
         yield server
     finally:
         server.stop()
+
+
+@dataclass
+class ServeRun:
+    """What an ``efdm serve`` process printed and how it ended (filled when it stops)."""
+
+    url: str
+    out: str = ""
+    err: str = ""
+    returncode: int | None = None
+
+
+@contextlib.contextmanager
+def efdm_serve(**env: str) -> Iterator[ServeRun]:
+    """``efdm serve`` as a process on a free port with ``EFDM_*`` ``env``; stopped by SIGINT."""
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "efdm_cli", "serve", "--port", str(port)],
+        env={**os.environ, **env},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    run = ServeRun(f"http://127.0.0.1:{port}")
+    try:
+        for _ in range(300):  # up to ~30 s for imports and the solver's warm-up
+            try:
+                if httpx.get(f"{run.url}/healthz", timeout=1).status_code == 200:
+                    break
+            except httpx.TransportError:
+                time.sleep(0.1)
+        else:
+            raise AssertionError("efdm serve did not answer /healthz")
+        yield run
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            out, err = proc.communicate(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, err = proc.communicate()
+        run.out, run.err, run.returncode = out.decode(), err.decode(), proc.returncode

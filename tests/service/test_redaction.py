@@ -4,17 +4,12 @@ from __future__ import annotations
 
 import io
 import logging
-import os
-import signal
-import subprocess
-import sys
-import time
 
 import httpx
 import pytest
 
 from service.redaction import REDACTED, RedactSecrets, redact
-from tests.service.conftest import free_port
+from tests.service.conftest import efdm_serve
 
 KEY = "s3cret-key-42"
 
@@ -63,36 +58,13 @@ def test_the_filter_redacts_messages_arguments_and_tracebacks() -> None:
 
 def test_efdm_serve_logs_no_key_at_info_level() -> None:
     """The access log printed ``?api_key=...`` in clear."""
-    port = free_port()
-    env = {**os.environ, "EFDM_LOG_LEVEL": "info", "EFDM_API_KEYS": KEY}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "efdm_cli", "serve", "--port", str(port)],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
-    try:
-        url = f"http://127.0.0.1:{port}"
-        for _ in range(300):
-            try:
-                if httpx.get(f"{url}/healthz", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                time.sleep(0.1)
-        else:
-            raise AssertionError("efdm serve did not answer /healthz")
+    with efdm_serve(EFDM_LOG_LEVEL="info", EFDM_API_KEYS=KEY) as run:
+        url = run.url
         assert httpx.get(f"{url}/v1/sessions", params={"api_key": KEY}).status_code == 401
         auth = {"authorization": f"Bearer {KEY}"}
         assert httpx.get(f"{url}/v1/sessions?limit=1", headers=auth).status_code == 200
         assert httpx.get(f"{url}/v1/sessions/nope?api_key={KEY}", headers=auth).status_code == 404
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            out, err = proc.communicate(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            out, err = proc.communicate()
-    logs = (out + err).decode()
+    logs = run.out + run.err
     assert "/v1/sessions/nope" in logs  # the access log is on ...
     assert KEY not in logs  # ... and says nothing of the key
     assert f"api_key={REDACTED}" in logs

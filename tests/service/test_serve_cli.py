@@ -2,36 +2,14 @@
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
-import time
-
 import httpx
 
-from tests.service.conftest import free_port
+from tests.service.conftest import efdm_serve
 
 
 def test_efdm_serve_starts_answers_and_stops() -> None:
-    port = free_port()
-    env = {**os.environ, "EFDM_MAX_SESSIONS": "7", "EFDM_LOG_LEVEL": "warning"}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "efdm_cli", "serve", "--port", str(port)],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
-    try:
-        url = f"http://127.0.0.1:{port}"
-        for _ in range(300):  # up to ~30 s for imports and the solver's warm-up
-            try:
-                if httpx.get(f"{url}/healthz", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                time.sleep(0.1)
-        else:
-            raise AssertionError("efdm serve did not answer /healthz")
+    with efdm_serve(EFDM_MAX_SESSIONS="7", EFDM_LOG_LEVEL="warning") as run:
+        url = run.url
         assert httpx.get(f"{url}/readyz").json() == {"status": "ready"}
         page = httpx.get(f"{url}/")
         assert page.status_code == 200
@@ -41,18 +19,10 @@ def test_efdm_serve_starts_answers_and_stops() -> None:
         body = {"circle": {"center": [50, 50], "radius": 10, "count": 8}}
         codes = [httpx.post(f"{url}/v1/sessions", json=body).status_code for _ in range(8)]
         assert codes == [201] * 7 + [429]
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            out, err = proc.communicate(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            out, err = proc.communicate()
-    assert proc.returncode == 0, err.decode()
+    assert run.returncode == 0, run.err
     # one line on start says where to look and what is on
-    assert out.decode().splitlines() == [
-        f"efdm serve: http://127.0.0.1:{port}/ (demo page), /docs (API docs); "
-        "API keys off; sessions in memory"
+    assert run.out.splitlines() == [
+        f"efdm serve: {url}/ (demo page), /docs (API docs); API keys off; sessions in memory"
     ]
 
 
