@@ -84,9 +84,8 @@ def test_healthz_answers_while_slow_clients_are_cut_off(server: str) -> None:
     port = int(server.rsplit(":", 1)[1])
     conns = half_sent(port, SLOW_CLIENTS)
     try:
-        start = time.monotonic()
-        assert httpx.get(f"{server}/healthz", timeout=5).status_code == 200
-        assert time.monotonic() - start < 1.0
+        # answered within a second: the requirement, as the request's own timeout
+        assert httpx.get(f"{server}/healthz", timeout=1.0).status_code == 200
         # and a new client still gets a session made
         created = httpx.post(
             f"{server}/v1/sessions", json={"circle": {"center": [9, 9], "radius": 5}}

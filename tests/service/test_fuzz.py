@@ -200,6 +200,13 @@ def send(
     return url, response.status_code, response.headers.get("content-type", ""), response.content
 
 
+def sessions_held(client: TestClient) -> int:
+    """How many sessions the app's store holds (its /metrics gauge, read from the store)."""
+    text = client.get("/metrics").text
+    line = next(x for x in text.splitlines() if x.startswith("efdm_sessions_active "))
+    return int(float(line.split()[1]))
+
+
 def new_session_in(client: TestClient) -> str:
     response = client.post("/v1/sessions", json=CIRCLE)
     assert response.status_code == 201
@@ -226,7 +233,11 @@ def test_random_bodies_everywhere(
 def test_near_valid_sessions_and_forces(fuzz_client: TestClient, spec: dict[str, Any]) -> None:
     body = json.dumps(spec).encode()  # NaN and Infinity go as the bare words
     headers = {"content-type": "application/json"}
+    held = sessions_held(fuzz_client)
     created = fuzz_client.post("/v1/sessions", content=body, headers=headers)
+    assert sessions_held(fuzz_client) == held + (
+        created.status_code == 201
+    )  # a failure stores none
     check_body(
         "POST",
         "/v1/sessions",

@@ -128,3 +128,10 @@ def test_a_sequence_is_scored_without_its_first_and_last_frame() -> None:
         score_sequence(predicted[:5], truth)
     with pytest.raises(ValueError, match="different sizes"):
         score_sequence([np.zeros((10, 10))] * 6, truth)
+
+
+def test_masks_must_be_two_dimensional_and_alike() -> None:
+    with pytest.raises(ValueError, match="H x W"):
+        region_similarity(np.zeros((4, 4, 3)), np.zeros((4, 4, 3)))
+    with pytest.raises(ValueError, match="different sizes"):
+        boundary_measure(np.zeros((4, 5)), np.zeros((5, 4)))
