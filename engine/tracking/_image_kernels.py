@@ -305,3 +305,16 @@ def contour_pull(
         pull[i, 0] = strength[i] * offset[i] * normals[i, 0]
         pull[i, 1] = strength[i] * offset[i] * normals[i, 1]
     return contrast
+
+
+@nb.njit(cache=True, nogil=True)
+def scale_odds(probability: NDArray[np.float32], ratio: NDArray[np.float32]) -> NDArray[np.float32]:
+    """``p r / (p r + 1 - p)`` per pixel: the odds of p(object) ``p`` times ``r``."""
+    h, w = probability.shape
+    out = np.empty((h, w), dtype=np.float32)
+    for i in range(h):
+        for j in range(w):
+            p = probability[i, j]
+            scaled = p * ratio[i, j]
+            out[i, j] = scaled / (scaled + (1.0 - p))
+    return out

@@ -26,6 +26,7 @@ def warm_up() -> None:
         image.colour_lookup(picture, 5, 4, table)
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
+    image.scale_odds(maps, maps)
     image.occluded(
         maps, np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint8), np.zeros((2, 3)), 0.35, 166
     )

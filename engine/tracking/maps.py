@@ -64,6 +64,12 @@ class Maps:
         p(object) as the appearance model sees the pixels, where
         ``probability`` was changed to guide the refinement (occluders made
         neutral); None when it was not.  What the confidence is read from.
+    motion : numpy.ndarray or None
+        float32 odds ratio ``e^m`` per pixel, ``m`` the log-odds that it moves
+        with the object rather than the background
+        (:mod:`engine.tracking.motion_contrast`), kept apart
+        from ``probability`` for the segmentation to add to its own colour
+        models; None when the motion says nothing.
     """
 
     origin: tuple[int, int]
@@ -71,6 +77,7 @@ class Maps:
     edges: NDArray[np.float32]
     edge_step: int = 1
     observed: NDArray[np.float32] | None = None
+    motion: NDArray[np.float32] | None = None
 
     @property
     def seen(self) -> NDArray[np.float32]:

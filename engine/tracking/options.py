@@ -104,6 +104,11 @@ class TrackerOptions:
         (:mod:`engine.tracking.holding`; in [0, 1], 0 turns it off; default
         0.4: cross-validated on the thirty training sequences against 0, 0.2
         and 0.6, chosen in all five folds).
+    motion_contrast : bool
+        Add to the colour evidence whether each pixel moved with the object
+        or with the background (:mod:`engine.tracking.motion_contrast`;
+        default True: cross-validated on the thirty training sequences, it
+        raised J in every fold and cut the decay).
 
     Raises
     ------
@@ -126,6 +131,7 @@ class TrackerOptions:
     cut_band: int = 8
     reacquire_above: float = 0.55
     hold_below: float = 0.4
+    motion_contrast: bool = True
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -160,5 +166,6 @@ class TrackerOptions:
         band = self.cut_band
         if isinstance(band, bool) or not isinstance(band, int) or not 0 <= band <= MAX_CUT_BAND:
             raise ValueError(f"cut_band must be an integer in [0, {MAX_CUT_BAND}]; got {band!r}")
-        if not isinstance(self.occlusion, bool):
-            raise ValueError(f"occlusion must be true or false; got {self.occlusion!r}")
+        for name in ("occlusion", "motion_contrast"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be true or false; got {getattr(self, name)!r}")

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from engine.geometry import contour_to_mask, mask_to_contour, perimeter
 from engine.tracking.local_colour import LocalColour
 from engine.tracking.maps import Maps
+from engine.tracking.motion_contrast import with_motion
 from engine.tracking.stages import Frame, check_kind
 
 __all__ = ["BandCut"]
@@ -116,13 +117,14 @@ class BandCut:
             return None
         scale = _scale(refined, self.band)
         region = image[y0 : y0 + h, x0 : x0 + w]
-        probability, observed = maps.probability, maps.observed
+        probability, observed, motion = maps.probability, maps.observed, maps.motion
         if scale > 1:  # a large object: the whole cut at half resolution
             # an exact halving (even sides) takes OpenCV's fast area-averaging path
             small = (w // scale, h // scale)
             region = _shrink(region, small, scale)
             probability = _shrink(probability, small, scale)
             observed = None if observed is None else _shrink(observed, small, scale)
+            motion = None if motion is None else _shrink(motion, small, scale)
         points = (refined - [x0, y0] + 0.5) / scale - 0.5
         inside = (contour_to_mask(points, region.shape) > 0).astype(np.uint8)
         if not inside.any():
@@ -134,6 +136,8 @@ class BandCut:
             local = self._windows.probability(
                 region, (x0, y0), predicted, probability, wanted, scale=scale
             )
+            if motion is not None:
+                local = with_motion(np.asarray(local, np.float32), motion)
             # occluded pixels stay neutral, as the cue stage made them
             if observed is not None:
                 local = np.where(probability != observed, probability, local)

@@ -53,6 +53,7 @@ from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.holding import carry, hold_factors, side_contrast
 from engine.tracking.maps import roi_box
 from engine.tracking.memory import Memory
+from engine.tracking.motion_contrast import motion_ratio, with_motion
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.reacquisition import search_reach, search_shape
@@ -283,8 +284,17 @@ class Tracker:
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result."""
         maps = cues.maps(image, grey, prediction, self.appearance)
+        guide = maps
+        if self.options.motion_contrast and self._previous is not None:
+            shape = maps.probability.shape
+            args = (maps.origin, shape, self._nodes, prediction.matrix)
+            ratio = motion_ratio(self._previous, grey, *args)
+            if ratio is not None:
+                probability = with_motion(maps.probability, ratio)
+                guide = dataclasses.replace(maps, probability=probability, observed=maps.seen)
+                maps = dataclasses.replace(maps, motion=ratio)
         refinement = refine(
-            maps,
+            guide,
             grey.shape,
             prediction.nodes,
             options=self.options,
@@ -408,6 +418,8 @@ class Tracker:
                 options.setdefault("cut_band", 0)
                 options.setdefault("reacquire_above", 1.0)
                 options.setdefault("hold_below", 0.0)
+            # written before the motion contrast: continue as the tracker that wrote it
+            options.setdefault("motion_contrast", False)
             tracker = cls(
                 state["nodes"],
                 motion=motion,

@@ -164,9 +164,13 @@ def test_a_custom_motion_and_appearance_model_track_the_disc(
 
 
 def test_custom_stages_change_the_track(frames: list[U8]) -> None:
-    default = run(Tracker(initial()), frames[:6])[-1]
-    mine = run(custom(), frames[:6])[-1]
-    assert not np.array_equal(default.nodes, mine.nodes)
+    default = run(Tracker(initial()), frames[:6])
+    mine = run(custom(), frames[:6])
+    # the contour may end on the same pixels; what the stages saw differs
+    assert any(
+        not np.array_equal(a.nodes, b.nodes) or a.confidence != b.confidence
+        for a, b in zip(default, mine, strict=True)
+    )
 
 
 def test_custom_stages_resume_exactly_from_a_state(frames: list[U8]) -> None:

@@ -243,11 +243,13 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
     """States written before the stages (version 1) continue as if uninterrupted."""
     old: State = json.loads(VERSION_1.read_text())
     assert old["version"] == 1
-    tracker = Tracker(initial(), cut_band=0)  # version 1 had no segmentation stage
+    # version 1 had no segmentation stage and no motion contrast
+    tracker = Tracker(initial(), cut_band=0, motion_contrast=False)
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])
     restored = Tracker.from_state(old)
     assert restored.options.cut_band == 0
+    assert restored.options.motion_contrast is False
     assert restored.frame_index == 4
     for frame, want in zip(frames[5:10], expected, strict=True):
         assert_same(restored.step(frame), want)
@@ -257,12 +259,13 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
 
 def test_a_version_2_state_resumes_exactly(frames: list[U8]) -> None:
     """States written before the segmentation stage continue as the tracker that wrote them."""
-    tracker = Tracker(initial(), cut_band=0)
+    tracker = Tracker(initial(), cut_band=0, motion_contrast=False)
     run(tracker, frames[:5])
     old = through_json(tracker.to_state())
     old["version"] = 2
     del old["stages"]["segmentation"]
     del old["options"]["cut_band"]
+    del old["options"]["motion_contrast"]
     expected = run(tracker, frames[5:10])
     restored = Tracker.from_state(old)
     assert restored.options.cut_band == 0
