@@ -86,10 +86,15 @@ def _background_motion(
 ) -> NDArray[np.float64] | None:
     """2 x 3 similarity of the background, in region pixels, or None if not measurable."""
     h, w = previous.shape
-    near = np.ones((2 * RING + 1, 2 * RING + 1), np.uint8)
-    outside = cv2.dilate(contour_to_mask(nodes, (h, w)), near) == 0
-    half = np.asarray(cv2.resize(previous, (w // 2, h // 2), interpolation=cv2.INTER_AREA))
-    mask = np.ascontiguousarray(outside[: 2 * (h // 2) : 2, : 2 * (w // 2) : 2], np.uint8)
+    # corners are sought at half resolution (even sides: OpenCV's exact halving)
+    half = np.asarray(
+        cv2.resize(
+            previous[: h - h % 2, : w - w % 2], (w // 2, h // 2), interpolation=cv2.INTER_AREA
+        )
+    )
+    near = np.ones((RING + 1, RING + 1), np.uint8)  # RING region pixels each way
+    inside = contour_to_mask((nodes - 0.5) / 2, half.shape)  # region p is half (p - 1/2) / 2
+    mask = np.asarray(cv2.dilate(inside, near) == 0, np.uint8)
     corners = cv2.goodFeaturesToTrack(
         half, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=mask, blockSize=3
     )
