@@ -53,15 +53,15 @@ folds of those sequences, fitted on four and scored on the fifth, the mean
 |confidence - IoU| is 0.11."""
 TRACKING_FROM = 0.52
 """Confidence from which a frame is reported ``tracking``.  Chosen on the thirty
-training sequences as tracked by today's tracker (joint segmentation, search,
-holding): it keeps 97 % of the frames with IoU >= 0.6 ``tracking`` (goal 95 %,
-a margin for video it was not chosen on) and reports 82 % of those with
-IoU < 0.2 ``uncertain`` or ``lost``.  On five folds (the threshold chosen on
-four, keeping 96 % there, scored on the fifth: thresholds 0.515-0.575) the
-held-out figures are 95.0 % and 84 %; on the five validation sequences only
-85 % of the good frames stay ``tracking``: the logistic model above predates
-the joint segmentation and wants refitting.  The tracker's own decision to
-search uses :data:`engine.tracking.tracker.SEARCH_BELOW`."""
+training sequences as tracked before the motion contrast (joint segmentation,
+search, holding): it kept 97 % of the frames with IoU >= 0.6 ``tracking`` (goal
+95 %) and reported 82 % of those with IoU < 0.2 ``uncertain`` or ``lost``; on
+five folds (the threshold chosen on four, scored on the fifth: thresholds
+0.515-0.575) 95.0 % and 84 %.  With the motion contrast the figures on the
+thirty are 95.2 % and 92 %; on the five validation sequences only 83 % of the
+good frames stay ``tracking``: the logistic model above predates the joint
+segmentation and the motion contrast and wants refitting.  The tracker's own
+decision to search uses :data:`engine.tracking.tracker.SEARCH_BELOW`."""
 LOST_BELOW = 0.2
 """Confidence below which a frame is reported ``lost``: 0.3 % of the frames with
 IoU >= 0.6 fall below it on the folds, 65 % of those with IoU < 0.2."""
