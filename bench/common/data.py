@@ -127,16 +127,36 @@ def synthetic_conditions() -> tuple[str, ...]:
     return tuple(str(c) for c in synthetic_module().CONDITIONS)
 
 
-def load_synthetic(condition: str, length: int) -> Clip:
-    """One synthetic sequence (seed 0, 480 x 640) as a :class:`Clip`, with the frames where
-    the object is hidden (its ``visible`` flags; all visible if the module has none)."""
-    sequence = synthetic_module().make_sequence(condition, seed=0, length=length, size=(480, 640))
+SEED_MARK = "@"
+"""A synthetic clip ``"occluder@2"`` is condition ``"occluder"`` drawn with seed 2 (plain
+``"occluder"``: seed 0)."""
+
+
+def synthetic_name(condition: str, seed: int) -> str:
+    """The clip name of a condition drawn with a seed (the bare condition for seed 0)."""
+    return condition if seed == 0 else f"{condition}{SEED_MARK}{seed}"
+
+
+def synthetic_condition(name: str) -> tuple[str, int]:
+    """``(condition, seed)`` of a synthetic clip name (:func:`synthetic_name`)."""
+    condition, _, seed = name.partition(SEED_MARK)
+    return condition, int(seed) if seed else 0
+
+
+def load_synthetic(name: str, length: int) -> Clip:
+    """One synthetic sequence (480 x 640; ``name`` as :func:`synthetic_name`) as a
+    :class:`Clip`, with the frames where the object is hidden (its ``visible`` flags; all
+    visible if the module has none)."""
+    condition, seed = synthetic_condition(name)
+    sequence = synthetic_module().make_sequence(
+        condition, seed=seed, length=length, size=(480, 640)
+    )
     frames = tuple(as_frame(f) for f in sequence.frames)
     masks = tuple(np.asarray(m, dtype=np.uint8) for m in sequence.masks)
     if len(frames) != len(masks) or not frames:
-        raise ValueError(f"synthetic {condition}: {len(frames)} frames but {len(masks)} masks")
+        raise ValueError(f"synthetic {name}: {len(frames)} frames but {len(masks)} masks")
     visible = tuple(bool(v) for v in getattr(sequence, "visible", ()))
-    return Clip(condition, "synthetic", frames, masks, visible)
+    return Clip(name, "synthetic", frames, masks, visible)
 
 
 def as_frame(frame: Any) -> Frame:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
+from bench.common.data import synthetic_condition
 from bench.common.report import GoalLine, fmt
 from bench.tracking.config import NODES
 from bench.tracking.metrics import HIGH_IOU, LOW_IOU, REACQUIRE_FRAMES, SetScore
@@ -110,7 +111,7 @@ def accuracy_goals(
         efdm = clip.runs.get("efdm")
         hidden = next((run.hidden for run in clip.runs.values() if run.hidden), [])
         value = efdm.mean_j if efdm is not None else math.nan
-        target = SYNTHETIC_GOALS.get(clip.name, SYNTHETIC_GOAL)
+        target = SYNTHETIC_GOALS.get(synthetic_condition(clip.name)[0], SYNTHETIC_GOAL)
         if not hidden:
             lines.append(score_goal(f"synthetic {clip.name}: mean IoU (efdm)", value, target))
             continue

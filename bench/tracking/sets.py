@@ -4,7 +4,8 @@
   the only ones any choice is tuned on, by cross-validation (:mod:`bench.tracking.cv`);
 - ``davis-val``: the five validation sequences (``../shared/data/davis2016``), reported and
   never tuned on;
-- ``synthetic``: the conditions of ``engine.testing.synthetic`` (seed 0, 480 x 640).
+- ``synthetic``: the conditions of ``engine.testing.synthetic`` (480 x 640), each drawn with
+  :attr:`Config.synthetic_seeds` seeds (clips ``"occluder"``, ``"occluder@1"``, ...).
 
 A :class:`ClipSpec` names a clip without its frames, so that a worker process loads it itself.
 A set whose data is absent is skipped with a note.
@@ -25,6 +26,7 @@ from bench.common.data import (
     load_synthetic,
     select,
     synthetic_conditions,
+    synthetic_name,
 )
 from bench.common.log import log
 from bench.tracking.config import Config
@@ -33,7 +35,7 @@ DAVIS_ROOTS: dict[str, Path] = {"davis-train": DAVIS_TRAIN_ROOT, "davis-val": DA
 TITLES = {
     "davis-train": "DAVIS-2016 training sequences (480p; tuned on by cross-validation only)",
     "davis-val": "DAVIS-2016 validation sequences (480p; held out: reported, never tuned on)",
-    "synthetic": "synthetic sequences (`engine.testing.synthetic`, seed 0, 480 x 640)",
+    "synthetic": "synthetic sequences (`engine.testing.synthetic`, 480 x 640; `name@k`: seed k)",
 }
 
 
@@ -68,17 +70,19 @@ def is_davis(set_name: str) -> bool:
     return set_name in DAVIS_ROOTS
 
 
-def available(set_name: str) -> tuple[list[str], str | None]:
-    """The clips of a set present on this machine, or none and why."""
+def available(set_name: str, seeds: int = 1) -> tuple[list[str], str | None]:
+    """The clips of a set present on this machine (synthetic: each condition with ``seeds``
+    seeds, seed by seed), or none and why."""
     if is_davis(set_name):
         root = DAVIS_ROOTS[set_name]
         found = davis_names(root)
         return found, None if found else f"{set_name}: no sequences found at {root}: skipped"
     try:
-        return list(synthetic_conditions()), None
+        conditions = synthetic_conditions()
     except (ImportError, AttributeError) as exc:
         why = f"{type(exc).__name__}: {exc}"
         return [], f"synthetic: engine.testing.synthetic unavailable ({why}): skipped"
+    return [synthetic_name(c, seed) for seed in range(seeds) for c in conditions], None
 
 
 def choose(
@@ -86,7 +90,7 @@ def choose(
 ) -> tuple[list[ClipSpec], str | None]:
     """The clips of a set to run (``wanted`` among those present, else the configured count),
     or none and why."""
-    names, why = available(set_name)
+    names, why = available(set_name, config.synthetic_seeds)
     if why is not None:
         log(why)
         return [], why
@@ -102,7 +106,8 @@ def choose(
 def is_partial(config: Config, set_name: str, specs: Sequence[ClipSpec]) -> bool:
     """Whether a set runs less than all of it (``--quick``, ``--sequences``, a frame limit)."""
     short = config.davis_frames is not None and is_davis(set_name)
-    return config.name == "quick" or short or len(specs) < len(available(set_name)[0])
+    everything = available(set_name, config.synthetic_seeds)[0]
+    return config.name == "quick" or short or len(specs) < len(everything)
 
 
 def limits(config: Config, set_name: str) -> dict[str, int]:
