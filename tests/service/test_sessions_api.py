@@ -455,15 +455,17 @@ def test_if_match_on_frames(client: TestClient) -> None:
 
 
 def test_tracking_options_are_passed_to_the_tracker(client: TestClient) -> None:
-    body = create(client, {**CIRCLE, "tracking": {"stiffness": 30}})
-    assert body["tracking"] == {"stiffness": 30}
+    # without the band cut the chain's contour, which the stiffness shapes, is the result
+    tracking = {"stiffness": 30, "cut_band": 0}
+    body = create(client, {**CIRCLE, "tracking": tracking})
+    assert body["tracking"] == tracking
     frames = [disc_frame(160 + 3 * i, 120 + 2 * i) for i in range(3)]
     for data in frames:
         out = post_frame(client, body["id"], data).json()
     decoded = [bgr(f) for f in frames]
     results = {}
     for stiffness in (30.0, 40.0):
-        tracker = Tracker(circle_nodes((160, 120), 40, 64), stiffness=stiffness)
+        tracker = Tracker(circle_nodes((160, 120), 40, 64), stiffness=stiffness, cut_band=0)
         for img in decoded:
             nodes = tracker.step(img).nodes
         results[stiffness] = nodes
