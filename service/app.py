@@ -19,6 +19,7 @@ from fastapi.staticfiles import StaticFiles
 import engine
 from service import docs_pages, errors
 from service.limits import BodyLimit
+from service.memory import MemoryReleaser
 from service.routes import health, sessions, stream
 from service.settings import Settings
 from service.shutdown import StreamRegistry
@@ -41,11 +42,12 @@ def make_store(settings: Settings) -> SessionStore:
     return MemoryStore(max_sessions=settings.max_sessions, ttl=settings.session_ttl_seconds)
 
 
-async def _sweep(store: SessionStore, every: float) -> None:
+async def _sweep(store: SessionStore, every: float, memory: MemoryReleaser) -> None:
     while True:
         await asyncio.sleep(every)
         with contextlib.suppress(Exception):
-            await store.sweep()
+            if await store.sweep():
+                memory.freed()
 
 
 def create_app(settings: Settings | None = None, store: SessionStore | None = None) -> FastAPI:
@@ -66,15 +68,16 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
         await anyio.to_thread.run_sync(engine.warm_up)  # compile before the first request
         gc.collect()
         gc.freeze()  # start-up objects out of the collector's way: no long gen-2 pauses
-        sweeper = asyncio.create_task(
-            _sweep(app.state.store, min(60.0, settings.session_ttl_seconds / 4))
-        )
+        every = min(60.0, settings.session_ttl_seconds / 4)
+        sweeper = asyncio.create_task(_sweep(app.state.store, every, app.state.memory))
+        trimmer = asyncio.create_task(app.state.memory.run())
         try:
             yield
         finally:
             # graceful shutdown (service/shutdown.py): streams uvicorn left open end with 1001
             await app.state.streams.close_all()
             sweeper.cancel()
+            trimmer.cancel()
             await app.state.store.close()
 
     app = FastAPI(
@@ -93,6 +96,7 @@ def create_app(settings: Settings | None = None, store: SessionStore | None = No
     )
     app.state.settings = settings
     app.state.store = store or make_store(settings)
+    app.state.memory = MemoryReleaser()
     app.state.streams = StreamRegistry()  # open WebSocket streams (graceful shutdown)
     app.state.cpu = CapacityLimiter(settings.workers or os.cpu_count() or 1)
     errors.install(app)

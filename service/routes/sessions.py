@@ -114,9 +114,12 @@ async def get_session(
 
 
 @router.delete("/{session_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
-async def delete_session(session_id: str, owner: OwnerDep, store: StoreDep) -> Response:
+async def delete_session(
+    session_id: str, owner: OwnerDep, store: StoreDep, request: Request
+) -> Response:
     """Delete the session."""
     await store.delete(session_id, owner)
+    request.app.state.memory.freed()  # its arrays go back to the system soon (service.memory)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
