@@ -113,3 +113,15 @@ def centroid(mask: U8) -> F64:
     """``[x, y]`` centroid of a mask's object pixels."""
     ys, xs = np.nonzero(mask)
     return np.array([xs.mean(), ys.mean()], dtype=np.float64)
+
+
+def shifted(image: U8, dx: float, dy: float) -> U8:
+    """``image`` translated by ``(dx, dy)`` pixels, bilinear, the border reflected."""
+    h, w = image.shape[:2]
+    matrix = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+    return np.asarray(
+        cv2.warpAffine(
+            image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
+        ),
+        np.uint8,
+    )

@@ -25,7 +25,7 @@ class Counter:
         self.calls += 1
 
 
-async def settle(releaser: MemoryReleaser, task: asyncio.Task[None]) -> None:
+async def settle(task: asyncio.Task[None]) -> None:
     await asyncio.sleep(10 * SOON + 0.05)
     task.cancel()
 
@@ -38,7 +38,7 @@ def test_sessions_ending_in_a_burst_are_trimmed_for_once() -> None:
         task = asyncio.create_task(releaser.run())
         for _ in range(50):
             releaser.freed()
-        await settle(releaser, task)
+        await settle(task)
 
     asyncio.run(scenario())
     assert counter.calls == 1
@@ -49,7 +49,7 @@ def test_nothing_is_trimmed_while_no_session_ends() -> None:
 
     async def scenario() -> None:
         releaser = MemoryReleaser(counter, after=SOON)
-        await settle(releaser, asyncio.create_task(releaser.run()))
+        await settle(asyncio.create_task(releaser.run()))
 
     asyncio.run(scenario())
     assert counter.calls == 0

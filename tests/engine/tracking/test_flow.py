@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 from engine.geometry import circle_nodes, outward_normals
 from engine.tracking.flow import dense_flow, node_flow
 from engine.tracking.motion import FramePair
-from tests.engine.scenes import textured_frame
+from tests.engine.scenes import shifted, textured_frame
 
 U8 = NDArray[np.uint8]
 W, H = 200, 150
@@ -20,16 +20,6 @@ NODES = circle_nodes((100.0, 75.0), 30.0, 48)
 @pytest.fixture(scope="module")
 def grey() -> U8:
     return np.asarray(cv2.cvtColor(textured_frame(5, H, W), cv2.COLOR_BGR2GRAY), np.uint8)
-
-
-def shifted(image: U8, dx: float, dy: float) -> U8:
-    matrix = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
-    return np.asarray(
-        cv2.warpAffine(
-            image, matrix, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
-        ),
-        np.uint8,
-    )
 
 
 def test_frame_pair_crops_around_the_nodes_and_halves(grey: U8) -> None:

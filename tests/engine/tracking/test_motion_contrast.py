@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 import engine
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking.motion_contrast import GAIN, motion_ratio, with_motion
-from tests.engine.scenes import textured_frame
+from tests.engine.scenes import shifted, textured_frame
 
 U8 = NDArray[np.uint8]
 W, H = 240, 180
@@ -25,16 +25,6 @@ ORIGIN, SHAPE = (40, 10), (160, 160)  # a region around the disc, as the cue map
 
 def grey(seed: int) -> U8:
     return np.asarray(cv2.cvtColor(textured_frame(seed, H, W), cv2.COLOR_BGR2GRAY), np.uint8)
-
-
-def shifted(image: U8, dx: float, dy: float) -> U8:
-    matrix = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
-    return np.asarray(
-        cv2.warpAffine(
-            image, matrix, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
-        ),
-        np.uint8,
-    )
 
 
 def scene(
