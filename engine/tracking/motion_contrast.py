@@ -170,8 +170,9 @@ def motion_ratio(
         warped = cv2.warpAffine(
             before, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
         )
-        difference = np.asarray(cv2.absdiff(after, warped), np.float32)
-        return np.asarray(cv2.blur(difference, (AVERAGE, AVERAGE)), np.float32)
+        # the box mean straight from uint8: a third of the cost of converting first
+        difference = cv2.absdiff(after, warped)
+        return np.asarray(cv2.boxFilter(difference, cv2.CV_32F, (AVERAGE, AVERAGE)), np.float32)
 
     r_o, r_b = residual(obj), residual(background)
     odds = cv2.divide(r_b - r_o, r_b + r_o + np.float32(NOISE), scale=GAIN)
