@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import json
 import zlib
 from collections.abc import Mapping
 from typing import Any
@@ -109,3 +110,104 @@ def from_version_1(state: Mapping[str, Any]) -> dict[str, Any]:
         "previous": previous if stages is not None else None,
         "stages": stages,
     }
+
+
+COMPACT_MARGIN = 64
+"""Pixels of the previous frame kept sharp around the contour in a compact state: the
+motion stage's context (:data:`engine.tracking.motion.CONTEXT`), which also covers the
+cue maps' region (twice the search radius) for objects moving up to 36 pixels a frame."""
+COMPACT_QUALITIES = (90, 80, 70, 60, 50, 40, 30, 20)
+"""JPEG qualities tried in turn for the kept region (stored at half resolution) until
+the frame fits its byte budget: at 90, grey levels within a few of the original."""
+CONTEXT_SCALE = 4
+"""The rest of the frame is kept at a quarter of its resolution (a few kB)."""
+CONTEXT_QUALITY = 50
+"""JPEG quality of that reduced frame: only coarse context is read there."""
+MAX_SIDE = 1 << 15
+"""Largest frame side a compact state may declare (OpenCV's own image limit)."""
+
+
+def _jpeg(image: NDArray[np.uint8], quality: int) -> str:
+    ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        raise ValueError("image does not encode as JPEG")
+    return base64.b64encode(data.tobytes()).decode("ascii")
+
+
+def _box(shape: tuple[int, int], nodes: NDArray[np.float64], margin: int) -> tuple[int, ...]:
+    """``(x0, y0, x1, y1)`` of the nodes' box grown by ``margin``, clipped, even-sided."""
+    h, w = shape
+    x0, y0 = (max(int(v) - margin, 0) for v in np.floor(nodes.min(axis=0)))
+    x1, y1 = (int(v) + margin + 1 for v in np.ceil(nodes.max(axis=0)))
+    x0, y0 = min(x0, w - 2), min(y0, h - 2)
+    x1, y1 = min(max(x1, x0 + 2), w), min(max(y1, y0 + 2), h)
+    return x0, y0, x0 + (x1 - x0) // 2 * 2, y0 + (y1 - y0) // 2 * 2
+
+
+def pack_compact_frame(
+    grey: NDArray[np.uint8], nodes: NDArray[np.float64], budget: int
+) -> dict[str, Any]:
+    """A grey frame in a few tens of kB: sharp(ish) around ``nodes``, coarse elsewhere.
+
+    The region of :data:`COMPACT_MARGIN` pixels around the nodes' box is kept at half
+    resolution, JPEG of the best of :data:`COMPACT_QUALITIES` whose encoding keeps
+    the whole within ``budget`` characters (else the lowest), the whole frame at a
+    quarter (:data:`CONTEXT_SCALE`, JPEG :data:`CONTEXT_QUALITY`);
+    :func:`unpack_compact_frame` gives a full-size approximation.  Lossy: a tracker
+    resumed from it tracks its next frame slightly differently (frames of at least
+    2 x 2 pixels).
+    """
+    h, w = grey.shape
+    x0, y0, x1, y1 = _box((h, w), nodes, COMPACT_MARGIN)
+    half = ((x1 - x0) // 2, (y1 - y0) // 2)
+    detail = cv2.resize(grey[y0:y1, x0:x1], half, interpolation=cv2.INTER_AREA)
+    small = (max(w // CONTEXT_SCALE, 1), max(h // CONTEXT_SCALE, 1))
+    context = _jpeg(
+        np.asarray(cv2.resize(grey, small, interpolation=cv2.INTER_AREA)), CONTEXT_QUALITY
+    )
+    packed = {"shape": [h, w], "box": [x0, y0, x1, y1], "detail": "", "context": context}
+    room = budget - len(json.dumps(packed))
+    for quality in COMPACT_QUALITIES:
+        packed["detail"] = _jpeg(np.asarray(detail, np.uint8), quality)
+        if len(packed["detail"]) <= room:
+            break
+    return packed
+
+
+def unpack_compact_frame(state: Mapping[str, Any]) -> NDArray[np.uint8]:
+    """The full-size approximation of a :func:`pack_compact_frame` frame.
+
+    Raises ValueError when the state is malformed.
+    """
+    h, w = (int(v) for v in state["shape"])
+    x0, y0, x1, y1 = (int(v) for v in state["box"])
+    if not (2 <= h <= MAX_SIDE and 2 <= w <= MAX_SIDE):
+        raise ValueError(f"compact frame: bad size {w}x{h}")
+    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+        raise ValueError("compact frame: the kept region is not inside the frame")
+    frame = np.asarray(cv2.resize(unpack_image(state["context"]), (w, h)), np.uint8)
+    detail = unpack_image(state["detail"])
+    if detail.shape != ((y1 - y0) // 2, (x1 - x0) // 2):
+        raise ValueError("compact frame: the kept region has the wrong size")
+    frame[y0:y1, x0:x1] = cv2.resize(detail, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR)
+    return frame
+
+
+def pack_levels(probability: NDArray[np.uint8], low: int, high: int) -> dict[str, Any]:
+    """p(object) as 0-255 kept as three levels (below ``low``: 0; above ``high``: 255;
+    else 128) at half resolution, PNG: a few kB instead of tens."""
+    h, w = probability.shape
+    half = cv2.resize(probability, (max(w // 2, 1), max(h // 2, 1)), interpolation=cv2.INTER_AREA)
+    levels = np.where(half > high, 255, np.where(half < low, 0, 128)).astype(np.uint8)
+    return {"shape": [h, w], "levels": pack_image(levels)}
+
+
+def unpack_levels(state: Mapping[str, Any]) -> NDArray[np.uint8]:
+    """The full-size 0-255 map of :func:`pack_levels`; ValueError if malformed."""
+    h, w = (int(v) for v in state["shape"])
+    if not (1 <= h <= MAX_SIDE and 1 <= w <= MAX_SIDE):
+        raise ValueError(f"p(object) levels: bad size {w}x{h}")
+    levels = unpack_image(state["levels"])
+    if levels.shape != (max(h // 2, 1), max(w // 2, 1)):
+        raise ValueError("p(object) levels have the wrong size")
+    return np.asarray(cv2.resize(levels, (w, h), interpolation=cv2.INTER_NEAREST), np.uint8)

@@ -16,9 +16,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.tracking._state_codec import pack_image, unpack_image
+from engine.tracking._state_codec import pack_image, pack_levels, unpack_image, unpack_levels
 from engine.tracking.maps import Maps, cue_maps, roi_box
-from engine.tracking.occlusion import LocatedProbability, unoccluded
+from engine.tracking.occlusion import BACKGROUND_BELOW, OBJECT_ABOVE, LocatedProbability, unoccluded
 from engine.tracking.stages import AppearanceModel, Frame, Grey, Prediction, check_kind
 
 __all__ = ["RegionEdgeCues"]
@@ -90,12 +90,23 @@ class RegionEdgeCues:
             memory = {"origin": list(origin), "png": pack_image(prob)}
         return {"kind": KIND, "memory": memory}
 
+    def to_compact_state(self) -> dict[str, Any]:
+        """:meth:`to_state` in a few kB: the remembered p(object) as three levels (clearly
+        background, unsure, clearly object: what the occlusion rule asks) at half resolution."""
+        memory = None
+        if self._memory is not None:
+            origin, prob = self._memory
+            low = round(BACKGROUND_BELOW * 255)
+            memory = {"origin": list(origin), **pack_levels(prob, low, OBJECT_ABOVE)}
+        return {"kind": KIND, "memory": memory}
+
     def from_state(self, state: Mapping[str, Any]) -> Self:
-        """These cues holding ``state`` (of :meth:`to_state`)."""
+        """These cues holding ``state`` (of :meth:`to_state` or :meth:`to_compact_state`)."""
         check_kind(state, KIND, "cues")
         restored = type(self)(self.search_radius, self.occlusion)
         memory = state.get("memory")
         if memory is not None:
             x, y = (int(v) for v in memory["origin"])
-            restored._memory = (x, y), unpack_image(memory["png"])
+            prob = unpack_levels(memory) if "levels" in memory else unpack_image(memory["png"])
+            restored._memory = (x, y), prob
         return restored

@@ -21,6 +21,11 @@ file that has these methods; pass an instance to the tracker::
     tracker = Tracker(nodes, motion=MyMotion())
     resumed = Tracker.from_state(tracker.to_state(), motion=MyMotion())
 
+A stage may also have ``to_compact_state()``: a smaller, possibly lossy state
+that its ``from_state`` also reads, used by ``Tracker.to_state(compact=True)``
+(the default cues keep p(object) as three levels); without it the exact state
+is used there too.
+
 The defaults are :class:`engine.tracking.FlowMotion`,
 :class:`engine.tracking.ColourHistogram`,
 :class:`engine.tracking.RegionEdgeCues` and :class:`engine.tracking.BandCut`.

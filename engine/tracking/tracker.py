@@ -29,6 +29,7 @@ from __future__ import annotations
 import binascii
 import copy
 import dataclasses
+import json
 import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -41,7 +42,12 @@ from engine.geometry import as_nodes, resample
 from engine.tracking._frames import as_frame as _as_frame
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._state_codec import from_version_1 as _from_version_1
-from engine.tracking._state_codec import pack_image, unpack_image
+from engine.tracking._state_codec import (
+    pack_compact_frame,
+    pack_image,
+    unpack_compact_frame,
+    unpack_image,
+)
 from engine.tracking.appearance import ColourHistogram
 from engine.tracking.confidence import (
     TRACKING_FROM,
@@ -93,11 +99,24 @@ PROBATION = 2
 jump is right only if the object is then followed from there."""
 UNCONFIRMED = TRACKING_FROM - 1e-3
 """The confidence reported while on probation: just below ``tracking``."""
+COMPACT_BYTES = 52 * 1024
+"""JSON size a compact state aims at (the previous frame's detail gets what the rest
+leaves): the service's Redis record adds about 9 kB for a 128-node session (its
+contour and rest shape), which keeps a committed frame within 64 kB."""
 SEARCH_BELOW = 0.445
 """A frame whose contour's confidence is below this starts a search, and one at
 or above it gives the shape to search for (the threshold the search and the
 holding were cross-validated with; the reported status has its own,
 :data:`engine.tracking.confidence.TRACKING_FROM`)."""
+
+
+def _stage_state(stage: object, compact: bool) -> dict[str, Any]:
+    """A stage's state: its compact one when asked for and offered, else the exact one."""
+    method = getattr(stage, "to_compact_state", None) if compact else None
+    if method is None:
+        method = getattr(stage, "to_state")  # noqa: B009 - every stage has it (protocol)
+    state: dict[str, Any] = method()
+    return state
 
 
 @dataclass(frozen=True, slots=True)
@@ -352,7 +371,7 @@ class Tracker:
 
     # --- serialisation -------------------------------------------------------------
 
-    def to_state(self, *, include_frame: bool = True) -> dict[str, Any]:
+    def to_state(self, *, include_frame: bool = True, compact: bool = False) -> dict[str, Any]:
         """A JSON-able snapshot from which :meth:`from_state` resumes tracking.
 
         Parameters
@@ -360,22 +379,41 @@ class Tracker:
         include_frame : bool
             Keep the previous grey frame (PNG, base64) and each stage's state
             (for the defaults: the colour histograms, p(object) around the
-            contour and the corners being tracked; tens of kB), so tracking
-            continues exactly as if uninterrupted; without them the next
-            frame re-initialises.
+            contour and the corners being tracked; hundreds of kB at 480p),
+            so tracking continues exactly as if uninterrupted; without them
+            the next frame re-initialises.
+        compact : bool
+            With ``include_frame``: a snapshot of a few tens of kB instead,
+            for stores written at every frame.  The previous frame is kept at
+            half resolution around the contour and a quarter elsewhere (JPEG)
+            and stages that offer a ``to_compact_state`` method (the default
+            cues: p(object) as three levels) use it.  Lossy: the next frame
+            is tracked slightly differently from an uninterrupted run (the
+            frames after it from that frame's exact result); the contour, the
+            options and the colour models stay exact, the shape the search
+            remembers is kept to a hundredth of a pixel.
         """
         previous = self._previous if include_frame else None
-        return {
+        state: dict[str, Any] = {
             "version": STATE_VERSION,
             "nodes": self._nodes.tolist(),
             "options": dataclasses.asdict(self.options),
             "frame_index": self.frame_index,
-            "previous": None if previous is None else pack_image(previous),
+            "previous": None,
             "stages": None
             if previous is None
-            else {name: getattr(self, name).to_state() for name in STAGES},
+            else {name: _stage_state(getattr(self, name), compact) for name in STAGES},
             "search": None if previous is None else self._memory.to_state(),
         }
+        if previous is not None and compact:
+            search = state["search"]  # the shape searched for, to a hundredth of a pixel
+            search["shape"] = np.round(self._memory.shape, 2).tolist()
+            search["hold"] = np.round(self._memory.hold, 3).tolist()
+            room = COMPACT_BYTES - len(json.dumps(state))
+            state["previous"] = pack_compact_frame(previous, self._nodes, room)
+        elif previous is not None:
+            state["previous"] = pack_image(previous)
+        return state
 
     @classmethod
     def from_state(
@@ -441,7 +479,11 @@ class Tracker:
                 search = state.get("search")
                 if search is not None:
                     tracker._memory = Memory.from_state(search, len(tracker._nodes))
-                tracker._previous = unpack_image(previous)
+                tracker._previous = (
+                    unpack_compact_frame(previous)
+                    if isinstance(previous, Mapping)
+                    else unpack_image(previous)
+                )
         except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
             raise ValueError(f"malformed tracker state: {exc}") from None
         return tracker
