@@ -38,6 +38,7 @@ def make_store(settings: Settings) -> SessionStore:
             settings.redis_url,
             max_sessions=settings.max_sessions,
             ttl=settings.session_ttl_seconds,
+            exact_cache=settings.redis_exact_cache,
         )
     return MemoryStore(max_sessions=settings.max_sessions, ttl=settings.session_ttl_seconds)
 

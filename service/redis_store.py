@@ -29,6 +29,7 @@ import json
 import secrets
 import time
 import weakref
+from collections import OrderedDict
 from collections.abc import AsyncIterator, Awaitable, Callable
 from functools import partial
 from typing import Any, TypeVar
@@ -50,6 +51,13 @@ from service.sessions import Session
 from service.store import Listed
 
 T = TypeVar("T")
+
+EXACT_CACHE = 64
+"""Sessions each replica keeps exactly in memory after committing them (a few hundred kB
+each): Redis holds a compact, lossy tracker state (:meth:`engine.Tracker.to_state`
+``compact=True``, tens of kB a frame), so a replica that wrote the version Redis holds
+goes on from its exact copy and only a session moving between replicas resumes from
+the compact one."""
 
 DEADLINE_SHARE = 0.8
 """A write must run within this share of the socket timeout after it was sent, by
@@ -172,8 +180,12 @@ class RedisStore:
         ttl: float,
         prefix: str = "efdm",
         timeout: float = 0.5,
+        exact_cache: int = EXACT_CACHE,
     ) -> None:
         self.max_sessions = max_sessions
+        self.exact_cache = exact_cache
+        # the sessions this replica wrote last, exact, by id: (version, session)
+        self._exact: OrderedDict[str, tuple[int, Session]] = OrderedDict()
         self.ttl = ttl
         self.prefix = prefix
         self.timeout = timeout
@@ -211,7 +223,7 @@ class RedisStore:
         return max(1, int(session.lifetime(self.ttl) * 1000))
 
     async def add(self, session: Session) -> None:
-        data = await anyio.to_thread.run_sync(lambda: json.dumps(session.to_record()))
+        data = await anyio.to_thread.run_sync(lambda: json.dumps(session.to_record(compact=True)))
         deadline = await self._deadline_ms()
         now = time.time()
         created = await self._call(
@@ -237,6 +249,7 @@ class RedisStore:
             raise StoreUnavailableError
         if not int(created):
             raise TooManySessionsError(self.max_sessions)
+        self._keep_exact(session)
 
     async def _deadline_ms(self) -> float:
         """The latest time, on Redis's clock, a write sent now may run (:data:`DEADLINE_SHARE`)."""
@@ -247,17 +260,34 @@ class RedisStore:
         return (time.time() + self._offset + DEADLINE_SHARE * self.timeout) * 1000
 
     async def _load(self, session_id: str, owner: str | None) -> Session:
+        """The session as Redis holds it: this replica's exact copy when it wrote the
+        version stored (taken out of the cache: the caller owns it), else the record."""
         before = time.time()
         async with self.redis.pipeline(transaction=False) as pipe:
-            pipe.hmget(self._key(session_id), ["o", "d"])
+            pipe.hmget(self._key(session_id), ["o", "v"])
             pipe.time()
             raw, (secs, micros) = await self._call(pipe.execute)
         self._offset = secs + micros / 1e6 - (before + time.time()) / 2
-        stored_owner, data = raw
-        if data is None or _text(stored_owner) != (owner or ""):
+        stored_owner, version = raw
+        if version is None or _text(stored_owner) != (owner or ""):
+            raise SessionNotFoundError
+        cached = self._exact.pop(session_id, None)
+        if cached is not None and str(cached[0]) == _text(version):
+            return cached[1]
+        data = await self._call(partial(self.redis.hget, self._key(session_id), "d"))
+        if data is None:
             raise SessionNotFoundError
         record: dict[str, Any] = json.loads(data)
         return await anyio.to_thread.run_sync(lambda: Session.from_record(record))
+
+    def _keep_exact(self, session: Session) -> None:
+        """Remember a session this replica just committed, exactly (least recent out)."""
+        if self.exact_cache <= 0:
+            return
+        self._exact[session.id] = (session.version, session)
+        self._exact.move_to_end(session.id)
+        while len(self._exact) > self.exact_cache:
+            self._exact.popitem(last=False)
 
     def lock_for(self, session_id: str) -> asyncio.Lock:
         """This replica's lock for a session (requests here take turns)."""
@@ -274,6 +304,7 @@ class RedisStore:
             yield session
             session.touched = time.time()
             await self.commit(session, expected)
+            self._keep_exact(session)
 
     @contextlib.asynccontextmanager
     async def stream(
@@ -323,7 +354,7 @@ class RedisStore:
         """
         changed = session.version != expected
         data = (
-            await anyio.to_thread.run_sync(lambda: json.dumps(session.to_record()))
+            await anyio.to_thread.run_sync(lambda: json.dumps(session.to_record(compact=True)))
             if changed
             else ""
         )
@@ -366,6 +397,7 @@ class RedisStore:
         stored = await self._call(lambda: self.redis.hget(self._key(session_id), "o"))
         if stored is None or _text(stored) != (owner or ""):
             raise SessionNotFoundError
+        self._exact.pop(session_id, None)
         async with self.redis.pipeline(transaction=True) as pipe:
             pipe.delete(self._key(session_id))
             pipe.zrem(self._index, session_id)

@@ -212,8 +212,12 @@ class Session:
             "elapsed_ms": (time.perf_counter() - start) * 1e3,
         }
 
-    def to_record(self) -> dict[str, Any]:
-        """The whole session as JSON-able data (for a shared store)."""
+    def to_record(self, *, compact: bool = False) -> dict[str, Any]:
+        """The whole session as JSON-able data (for a shared store).
+
+        ``compact``: the tracker's compact, lossy state (tens of kB instead of
+        hundreds, :meth:`engine.Tracker.to_state`); everything else stays exact.
+        """
         return {
             "id": self.id,
             "owner": self.owner,
@@ -228,7 +232,7 @@ class Session:
             "touched": self.touched,
             "frame_size": None if self.frame_size is None else list(self.frame_size),
             "ttl": self.ttl,
-            "tracker": None if self.tracker is None else self.tracker.to_state(),
+            "tracker": None if self.tracker is None else self.tracker.to_state(compact=compact),
         }
 
     @classmethod

@@ -29,6 +29,12 @@ class Settings(BaseSettings):
     redis_url: str | None = Field(
         None, description="redis://host:port/db: share sessions between replicas"
     )
+    redis_exact_cache: int = Field(
+        64,
+        ge=0,
+        description="sessions each replica keeps exactly after writing them to Redis "
+        "(which holds a compact, lossy tracker state); 0 = none",
+    )
     stream_commit_every: int = Field(
         1, ge=1, description="a WebSocket stream writes its session through every k frames"
     )
