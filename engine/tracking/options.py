@@ -95,7 +95,8 @@ class TrackerOptions:
         When a frame does not end ``tracking``, the tracker searches a
         growing window for the object's remembered shape
         (:mod:`engine.tracking.reacquisition`) and moves there if the
-        contour found reaches this confidence (in [0, 1]; 1 turns the search
+        contour found reaches this search score
+        (:func:`engine.tracking.confidence.search_score`; in [0, 1]; 1 turns the search
         off; default 0.55: cross-validated on the thirty training sequences
         against 0.445 and 0.65).
     hold_below : float

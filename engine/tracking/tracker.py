@@ -53,6 +53,7 @@ from engine.tracking.confidence import (
     TRACKING_FROM,
     calibrated,
     evidence,
+    search_score,
     status_of,
 )
 from engine.tracking.cues import RegionEdgeCues
@@ -92,7 +93,7 @@ LEARN_ABOVE = 0.5
 model, so that a lost or occluded object does not teach it the background."""
 STAGES = ("motion", "appearance", "cues", "segmentation")
 REACQUIRE_MARGIN = 0.05
-"""A re-acquired contour must beat the local track's confidence by this much:
+"""A re-acquired contour must beat the local track's search score by this much:
 of two near-equal readings, the one that did not jump wins."""
 PROBATION = 2
 """A re-acquired contour is reported ``uncertain`` for its first 2 frames: a
@@ -104,9 +105,10 @@ COMPACT_BYTES = 52 * 1024
 leaves): the service's Redis record adds about 9 kB for a 128-node session (its
 contour and rest shape), which keeps a committed frame within 64 kB."""
 SEARCH_BELOW = 0.445
-"""A frame whose contour's confidence is below this starts a search, and one at
-or above it gives the shape to search for (the threshold the search and the
-holding were cross-validated with; the reported status has its own,
+"""A frame whose contour's search score (:func:`engine.tracking.confidence.search_score`)
+is below this starts a search, and one at or above it gives the shape to search for
+(the threshold the search and the holding were cross-validated with; the reported
+confidence and status have their own model and threshold,
 :data:`engine.tracking.confidence.TRACKING_FROM`)."""
 
 
@@ -121,11 +123,13 @@ def _stage_state(stage: object, compact: bool) -> dict[str, Any]:
 
 @dataclass(frozen=True, slots=True)
 class _Attempt:
-    """One way of tracking the frame: the refinement, the final contour and its confidence."""
+    """One way of tracking the frame: the refinement, the final contour, its confidence
+    (reported) and its score (the search's decisions)."""
 
     refinement: Refinement
     nodes: NDArray[np.float64]
     confidence: float
+    score: float
 
 
 class Tracker:
@@ -263,14 +267,14 @@ class Tracker:
         hold = memory.hold
         attempt = self._attempt(image, grey, prediction, self.cues, hold)
         visible = self._visible(grey)
-        if attempt.confidence < SEARCH_BELOW and visible:
+        if attempt.score < SEARCH_BELOW and visible:
             memory.misses += 1
             retry = self._search(image, grey, prediction)
             if retry is not None:
                 moved = carry(hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
                 other = self._attempt(image, grey, retry, cues, moved)
-                margin = attempt.confidence + REACQUIRE_MARGIN
-                if other.confidence >= self.options.reacquire_above and other.confidence > margin:
+                margin = attempt.score + REACQUIRE_MARGIN
+                if other.score >= self.options.reacquire_above and other.score > margin:
                     prediction, attempt, self.cues, hold = retry, other, cues, moved
                     self.motion.reset()
                     memory.probation = PROBATION + 1
@@ -279,7 +283,7 @@ class Tracker:
         if memory.probation > 0:
             memory.probation -= 1
             confidence = min(confidence, UNCONFIRMED)
-        elif confidence >= SEARCH_BELOW:
+        elif attempt.score >= SEARCH_BELOW:
             memory.misses = 0
             memory.shape = nodes
         support = MOTION_SHARE * prediction.support
@@ -324,8 +328,8 @@ class Tracker:
         cut = self.segmentation.segment(image, maps, prediction.nodes, nodes)
         if cut is not None and valid_contour(cut, grey.shape, self._nodes):
             nodes = cut
-        confidence = calibrated(evidence(maps, nodes, refinement.converged))
-        return _Attempt(refinement, nodes, confidence)
+        found = evidence(maps, nodes, refinement.converged)
+        return _Attempt(refinement, nodes, calibrated(found), search_score(found))
 
     def _search(
         self, image: NDArray[np.uint8], grey: NDArray[np.uint8], prediction: Prediction

@@ -55,7 +55,33 @@ def test_confidence_rises_with_the_evidence() -> None:
         assert all(0.0 < c < 1.0 for c in inside + outside)
     assert calibrated(Evidence(0.8, 0.2, True)) > calibrated(Evidence(0.8, 0.2, False))
     assert calibrated(Evidence(1.0, 0.0, True)) >= TRACKING_FROM
-    assert calibrated(Evidence(0.5, 0.5, False)) < LOST_BELOW  # nothing tells object from not
+    nothing = calibrated(Evidence(0.5, 0.5, False))  # nothing tells object from not
+    assert status_of(nothing) != "tracking"
+    assert calibrated(Evidence(0.1, 0.9, False)) < LOST_BELOW  # inside out
+
+
+def test_moving_with_the_object_inside_and_with_the_background_outside_raises_it() -> None:
+    plain = Evidence(0.7, 0.3, True)
+    agreed = Evidence(0.7, 0.3, True, motion_inside=1.5, motion_outside=-1.5, motion_seen=True)
+    crossed = Evidence(0.7, 0.3, True, motion_inside=-1.5, motion_outside=1.5, motion_seen=True)
+    assert calibrated(agreed) > calibrated(plain) > calibrated(crossed)
+
+
+def test_evidence_reads_the_motion_contrast_where_it_was_measured() -> None:
+    maps = disc_maps()
+    inside = maps.probability > 0
+    motion = np.where(inside, np.float32(np.e), np.float32(1 / np.e)).astype(np.float32)
+    moved = evidence(
+        Maps(maps.origin, maps.probability, maps.edges, motion=motion),
+        circle_nodes((60.0, 50.0), 20.0, 64),
+        settled=True,
+    )
+    assert moved.motion_seen
+    assert moved.motion_inside == pytest.approx(1.0, abs=1e-5)
+    assert moved.motion_outside < -0.9
+    still = evidence(maps, circle_nodes((60.0, 50.0), 20.0, 64), settled=True)
+    assert not still.motion_seen
+    assert still.motion_inside == still.motion_outside == 0.0
 
 
 @pytest.mark.parametrize(
