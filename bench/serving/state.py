@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import sys
 import time
@@ -74,7 +75,9 @@ def run(sets: dict[str, Path], quick: bool) -> dict[str, Any]:
     for label, root in sets.items():
         names = davis_names(root)[: QUICK_SEQUENCES if quick else None]
         jobs += [(label, name, str(root), mode) for name in names for mode in MODES]
-    with ProcessPoolExecutor(max_workers=2) as pool:
+    # spawn, not fork: a forked child can inherit a lock some thread of the parent held
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
         done = list(pool.map(_track, jobs))
     out: dict[str, Any] = {}
     for label in sets:
