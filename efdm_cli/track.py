@@ -8,7 +8,7 @@ Writes one JSON record per frame (JSON Lines)::
 Exit codes: 0 success; 1 an input or output could not be read or written
 (missing file, unreadable video, empty folder, undecodable image, overlay
 video that cannot be opened); 2 invalid arguments or data (not exactly one
-``--init-*`` option, malformed polygon or circle, ``--nodes`` < 3, empty mask,
+``--init-*`` option, malformed box, polygon or circle, ``--nodes`` < 3, empty mask,
 initial contour outside the first frame, frame size changing mid-stream,
 tracker options the tracker rejects).
 """
@@ -29,10 +29,10 @@ from numpy.typing import NDArray
 
 from efdm_cli._common import EXIT_INVALID, EXIT_IO, CliError
 
-__all__ = ["add_parser", "initial_contour", "parse_circle", "parse_polygon", "run"]
+__all__ = ["add_parser", "initial_contour", "parse_box", "parse_circle", "parse_polygon", "run"]
 
 Nodes = NDArray[np.float64]
-_INIT_OPTIONS = ("--init-mask", "--init-polygon", "--init-circle")
+_INIT_OPTIONS = ("--init-mask", "--init-box", "--init-polygon", "--init-circle")
 
 
 class StepResult(Protocol):
@@ -85,6 +85,24 @@ def parse_circle(text: str) -> tuple[float, float, float]:
     return values[0], values[1], values[2]
 
 
+def parse_box(text: str) -> tuple[float, float, float, float]:
+    """``"x0,y0,x1,y1"`` (pixel edges) with x1 > x0 and y1 > y0."""
+    values = _numbers(text, "--init-box")
+    if len(values) != 4 or not (values[2] > values[0] and values[3] > values[1]):
+        raise CliError(
+            f"--init-box: expected x0,y0,x1,y1 with x1 > x0 and y1 > y0; got {text!r}",
+            EXIT_INVALID,
+        )
+    return values[0], values[1], values[2], values[3]
+
+
+def _box_polygon(box: tuple[float, float, float, float]) -> Nodes:
+    """The box's outline through its edge pixels' centres (pixel edges to centres)."""
+    x0, y0, x1, y1 = box
+    left, top, right, bottom = x0, y0, max(x1 - 1.0, x0), max(y1 - 1.0, y0)
+    return np.array([[left, top], [right, top], [right, bottom], [left, bottom]])
+
+
 def _read_mask(path: str, label: int | None) -> NDArray[np.bool_]:
     """The object's pixels in a binary mask or label image (:mod:`efdm_cli._masks`)."""
     import cv2
@@ -103,8 +121,14 @@ def _read_mask(path: str, label: int | None) -> NDArray[np.bool_]:
         raise CliError(str(exc), EXIT_INVALID) from None
 
 
-def initial_contour(args: argparse.Namespace, size: tuple[int, int]) -> Nodes:
+def initial_contour(
+    args: argparse.Namespace, size: tuple[int, int], first: NDArray[np.uint8] | None = None
+) -> Nodes:
     """The ``--nodes`` initial nodes from exactly one ``--init-*`` option.
+
+    A box (``--init-box``, unless ``--no-snap``) or a polygon or circle with
+    ``--snap`` is snapped onto the object inside it in the ``first`` frame
+    (:func:`engine.tracking.snap.snap`).
 
     Parameters
     ----------
@@ -112,6 +136,8 @@ def initial_contour(args: argparse.Namespace, size: tuple[int, int]) -> Nodes:
         Parsed ``efdm track`` arguments.
     size : tuple of int
         ``(width, height)`` of the first frame.
+    first : numpy.ndarray, optional
+        The first frame (needed to snap).
 
     Raises
     ------
@@ -130,12 +156,19 @@ def initial_contour(args: argparse.Namespace, size: tuple[int, int]) -> Nodes:
     if getattr(args, "label", None) is not None and args.init_mask is None:
         raise CliError("--label chooses an object of --init-mask: give --init-mask", EXIT_INVALID)
     width, height = size
+    snapping = getattr(args, "snap", None)
+    box = getattr(args, "init_box", None)
+    if snapping is None:
+        snapping = box is not None  # boxes snap by default, outlines only when asked
     if args.init_circle is not None:
         cx, cy, r = parse_circle(args.init_circle)
         nodes = circle_nodes([cx, cy], r, args.nodes)
+    elif box is not None:
+        nodes = resample(_box_polygon(parse_box(box)), args.nodes, closed=True)
     elif args.init_polygon is not None:
         nodes = resample(parse_polygon(args.init_polygon), args.nodes, closed=True)
     else:
+        snapping = False
         mask = _read_mask(args.init_mask, getattr(args, "label", None))
         if mask.shape != (height, width):
             raise CliError(
@@ -151,6 +184,14 @@ def initial_contour(args: argparse.Namespace, size: tuple[int, int]) -> Nodes:
     inside = (x >= -0.5) & (x <= width - 0.5) & (y >= -0.5) & (y <= height - 0.5)
     if not inside.any() and not contour_to_mask(nodes, (height, width)).any():
         raise CliError(f"initial contour lies outside the frame ({width} x {height})", EXIT_INVALID)
+    if snapping and first is not None:
+        from engine.tracking.snap import snap
+
+        outline = parse_box(box) if box is not None else nodes
+        try:
+            nodes = mask_to_contour(snap(first, outline), args.nodes)
+        except ValueError as exc:
+            raise CliError(f"snap: {exc}", EXIT_INVALID) from None
     return nodes
 
 
@@ -235,7 +276,7 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             raise CliError(f"cannot read any frame from {args.input}", EXIT_IO)
         height, width = first[1].shape[:2]
         size = (width, height)
-        nodes = initial_contour(args, size)
+        nodes = initial_contour(args, size, first[1])
         try:
             tracker = Tracker(nodes, closed=True, **options)
         except (TypeError, ValueError) as exc:
@@ -330,8 +371,22 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="K",
         help="with --init-mask: the object of label K (needed when the mask has several)",
     )
+    init.add_argument(
+        "--init-box",
+        metavar="X0,Y0,X1,Y1",
+        help="a box around the object in pixel edges (the box of a mask spanning columns "
+        "x0..x1-1, rows y0..y1-1); snapped onto the object inside it unless --no-snap",
+    )
     init.add_argument("--init-polygon", metavar='"X,Y X,Y ..."', help="polygon, >= 3 points")
     init.add_argument("--init-circle", metavar="CX,CY,R", help="circle, centre and radius")
+    init.add_argument(
+        "--snap",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="snap the outline onto the object inside it on the first frame (GrabCut, under "
+        "a second at 854x480): the default for --init-box; --snap for a loose polygon or "
+        "circle; --no-snap keeps the box as given",
+    )
     t.add_argument(
         "--masks-out",
         metavar="DIR",

@@ -183,7 +183,11 @@ def _error(capsys: pytest.CaptureFixture[str], argv: list[str], code: int) -> st
 @pytest.mark.parametrize(
     ("init", "message"),
     [
-        ([], "exactly one of --init-mask, --init-polygon, --init-circle (got none)"),
+        ([], "exactly one of --init-mask, --init-box, --init-polygon, --init-circle (got none)"),
+        (["--init-box", "10,10,5,20"], "x1 > x0 and y1 > y0"),
+        (["--init-box", "10,10,20"], "x0,y0,x1,y1"),
+        (["--init-box", "300,300,320,330"], "outside the frame (160 x 120)"),
+        (["--init-box", "10,10,30,30", "--init-circle", CIRCLE], "--init-box and --init-circle"),
         (["--init-circle", CIRCLE, "--init-polygon", POLYGON], "--init-polygon and --init-circle"),
         (["--init-circle", "40,60"], "cx,cy,r"),
         (["--init-circle", "40,60,-3"], "r > 0"),
@@ -283,3 +287,45 @@ def test_a_reader_closing_the_pipe_stops_the_run_quietly(folder: Path) -> None:
     assert proc.wait(timeout=60) == 0
     assert proc.stderr.read() == b""
     proc.stderr.close()
+
+
+def disc_box(i: int) -> str:
+    """The disc's box on frame ``i`` in pixel edges, grown by 3 px (a rough box)."""
+    cx, cy = disc_centre(i)
+    return f"{cx - R - 3:g},{cy - R - 3:g},{cx + R + 4:g},{cy + R + 4:g}"
+
+
+@pytest.mark.parametrize("snap", [True, False])
+def test_a_box_snaps_onto_the_disc_unless_told_not_to(
+    folder: Path, tmp_path: Path, snap: bool
+) -> None:
+    from engine.geometry import contour_to_mask, mask_iou
+
+    out = tmp_path / "t.jsonl"
+    argv = ["track", str(folder), "--init-box", disc_box(0), "-o", str(out), "-q"]
+    assert main(argv if snap else [*argv, "--no-snap"]) == 0
+    first = np.array(read_records(out.read_text())[0]["nodes"])
+    truth = np.zeros((H, W), np.uint8)
+    cx, cy = disc_centre(0)
+    cv2.circle(truth, (round(cx), round(cy)), R, 255, -1)
+    iou = mask_iou(contour_to_mask(first, (H, W)), truth)
+    if snap:
+        assert iou > 0.9  # the box became the disc's outline
+    else:
+        assert iou < 0.85  # the box itself: a square around the disc
+        xs, ys = first[:, 0], first[:, 1]
+        assert xs.min() == pytest.approx(cx - R - 3)
+        assert ys.min() == pytest.approx(cy - R - 3)
+
+
+def test_a_loose_circle_snaps_when_asked(folder: Path, tmp_path: Path) -> None:
+    from engine.geometry import contour_to_mask, mask_iou
+
+    out = tmp_path / "t.jsonl"
+    loose = f"40,60,{R + 10}"
+    argv = ["track", str(folder / "frame_00[01].png"), "--init-circle", loose, "--snap"]
+    assert main([*argv, "-o", str(out), "-q"]) == 0
+    first = np.array(read_records(out.read_text())[0]["nodes"])
+    truth = np.zeros((H, W), np.uint8)
+    cv2.circle(truth, (40, 60), R, 255, -1)
+    assert mask_iou(contour_to_mask(first, (H, W)), truth) > 0.85  # 0.35 for the circle given
