@@ -103,6 +103,21 @@ def _box_polygon(box: tuple[float, float, float, float]) -> Nodes:
     return np.array([[left, top], [right, top], [right, bottom], [left, bottom]])
 
 
+def _warn_dropped_pieces(mask: NDArray[np.bool_], what: str) -> None:
+    """Say on stderr which separate pieces of the object the track leaves out."""
+    import cv2
+
+    count, _, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    areas = sorted((int(a) for a in stats[1:count, cv2.CC_STAT_AREA]), reverse=True)
+    if len(areas) > 1:
+        dropped = ", ".join(f"{a} px" for a in areas[1:6]) + (", ..." if len(areas) > 6 else "")
+        print(
+            f"efdm track: warning: {what} has {len(areas)} separate pieces; only the largest "
+            f"({areas[0]} px) is tracked, dropped: {dropped}",
+            file=sys.stderr,
+        )
+
+
 def _read_mask(path: str, label: int | None) -> NDArray[np.bool_]:
     """The object's pixels in a binary mask or label image (:mod:`efdm_cli._masks`)."""
     import cv2
@@ -180,6 +195,7 @@ def initial_contour(
             nodes = mask_to_contour(mask, args.nodes)
         except ValueError as exc:
             raise CliError(f"mask {args.init_mask}: {exc}", EXIT_INVALID) from None
+        _warn_dropped_pieces(mask, f"mask {args.init_mask}")
     x, y = nodes[:, 0], nodes[:, 1]
     inside = (x >= -0.5) & (x <= width - 0.5) & (y >= -0.5) & (y <= height - 0.5)
     if not inside.any() and not contour_to_mask(nodes, (height, width)).any():

@@ -329,3 +329,18 @@ def test_a_loose_circle_snaps_when_asked(folder: Path, tmp_path: Path) -> None:
     truth = np.zeros((H, W), np.uint8)
     cv2.circle(truth, (40, 60), R, 255, -1)
     assert mask_iou(contour_to_mask(first, (H, W)), truth) > 0.85  # 0.35 for the circle given
+
+
+def test_a_mask_in_several_pieces_warns_which_are_dropped(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    mask = np.zeros((H, W), np.uint8)
+    cv2.circle(mask, (40, 60), R, 255, -1)
+    cv2.rectangle(mask, (120, 10), (129, 19), 255, -1)  # a second piece, 100 px
+    path = tmp_path / "two.png"
+    assert cv2.imwrite(str(path), mask)
+    argv = ["track", str(folder / "frame_00[01].png"), "--init-mask", str(path), "-q"]
+    assert main([*argv, "-o", str(tmp_path / "t.jsonl")]) == 0
+    err = capsys.readouterr().err
+    assert "2 separate pieces" in err
+    assert "dropped: 100 px" in err
