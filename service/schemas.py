@@ -39,6 +39,10 @@ class Circle(BaseModel):
         return self
 
 
+BOX_NODES = 64
+"""Nodes of a contour started from a box (as a circle's default ``count``)."""
+
+
 class SessionCreate(BaseModel):
     """``POST /v1/sessions``: the initial contour and the model."""
 
@@ -46,6 +50,17 @@ class SessionCreate(BaseModel):
 
     nodes: list[Point] | None = Field(None, description="initial contour, [[x, y], ...]")
     circle: Circle | None = None
+    box: tuple[Finite, Finite, Finite, Finite] | None = Field(
+        None,
+        description="[x0, y0, x1, y1] around the object, pixel edges (the box of a mask whose "
+        f"pixels span columns x0..x1-1, rows y0..y1-1); a contour of {BOX_NODES} nodes, snapped "
+        "onto the object on the first frame unless 'snap' is false",
+    )
+    snap: bool | None = Field(
+        None,
+        description="snap the outline onto the object inside it on the first frame (GrabCut; "
+        "under a second at 854x480): default true for 'box', false for 'nodes' and 'circle'",
+    )
     closed: bool = True
     stiffness: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)] = 10.0
     method: Method = "exact"
@@ -60,9 +75,23 @@ class SessionCreate(BaseModel):
 
     @model_validator(mode="after")
     def _one_contour(self) -> SessionCreate:
-        if (self.nodes is None) == (self.circle is None):
-            raise ValueError("give exactly one of 'nodes' or 'circle'")
+        given = [k for k in ("nodes", "circle", "box") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of 'nodes', 'circle' or 'box'")
+        if self.box is not None:
+            x0, y0, x1, y1 = self.box
+            if not (x1 > x0 and y1 > y0):
+                raise ValueError(
+                    f"box must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0; got {list(self.box)}"
+                )
+        if self.snaps and not self.closed:
+            raise ValueError("'snap' needs a closed contour (an object's outline)")
         return self
+
+    @property
+    def snaps(self) -> bool:
+        """Whether the outline is snapped onto the object on the first frame."""
+        return self.box is not None if self.snap is None else self.snap
 
 
 class SessionOut(BaseModel):

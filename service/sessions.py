@@ -15,10 +15,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine import Tracker, deform
-from engine.geometry import circle_nodes
+from engine.geometry import circle_nodes, mask_to_contour, resample
 from engine.physics import MODAL_METHODS
+from engine.tracking.snap import snap
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
-from service.schemas import LIMIT, SessionCreate
+from service.schemas import BOX_NODES, LIMIT, SessionCreate
 from service.units import TIMES
 
 NEAR_LIMIT = 1e6
@@ -68,6 +69,8 @@ class Session:
     tracker: Tracker | None = None
     frame_size: tuple[int, int] | None = None  # (width, height) of the last frame tracked
     ttl: float | None = None  # idle seconds to expiry, when shorter than the server's
+    # the outline to snap onto the object on the next frame: a box or a polygon (None: done)
+    snap_outline: list[Any] | None = None
 
     def lifetime(self, server_ttl: float) -> float:
         """Idle seconds before this session expires: its own TTL, at most the server's."""
@@ -87,6 +90,13 @@ class Session:
             if c.count > max_nodes:
                 raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
             nodes = circle_nodes(c.center, c.radius, c.count)
+        elif spec.box is not None:
+            x0, y0, x1, y1 = spec.box  # pixel edges; the outline runs through the edge pixels
+            right, bottom = max(x1 - 1.0, x0), max(y1 - 1.0, y0)
+            corners = np.array([[x0, y0], [right, y0], [right, bottom], [x0, bottom]])
+            if right - x0 < 1e-9 or bottom - y0 < 1e-9:  # a box one pixel thin: its area
+                corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+            nodes = resample(corners, min(BOX_NODES, max_nodes), closed=True)
         else:
             nodes = np.asarray(spec.nodes, dtype=np.float64)
         need = 3 if spec.closed else 2
@@ -111,6 +121,11 @@ class Session:
             nodes=nodes.copy(),
             tracker=tracker,
             ttl=spec.ttl_seconds,
+            snap_outline=None
+            if not spec.snaps
+            else list(spec.box)
+            if spec.box is not None
+            else nodes.tolist(),
         )
 
     def expect_version(self, wanted: str) -> None:
@@ -176,6 +191,8 @@ class Session:
         if self.tracker is None:
             raise InvalidInputError("frames need a closed contour (an object boundary)")
         start = time.perf_counter()
+        if self.snap_outline is not None:
+            self._snap(frame)
         # near the coordinate limit a step could carry the contour past it: keep a way back
         undo = self.tracker.to_state() if np.abs(self.nodes).max() > LIMIT - NEAR_LIMIT else None
         try:
@@ -212,6 +229,23 @@ class Session:
             "elapsed_ms": (time.perf_counter() - start) * 1e3,
         }
 
+    def _snap(self, frame: NDArray[np.uint8]) -> None:
+        """Replace the contour by the object inside the outline on this frame.
+
+        Raises InvalidInputError (and changes nothing) when the outline lies
+        outside the frame.
+        """
+        if self.tracker is None or self.snap_outline is None:
+            return
+        try:
+            mask = snap(frame, self.snap_outline)
+            nodes = mask_to_contour(mask, len(self.nodes))
+        except ValueError as exc:
+            raise InvalidInputError(f"snap: {exc}") from None
+        self.tracker.reset(nodes)
+        self.rest, self.nodes = self.tracker.nodes, self.tracker.nodes
+        self.snap_outline = None
+
     def to_record(self, *, compact: bool = False) -> dict[str, Any]:
         """The whole session as JSON-able data (for a shared store).
 
@@ -233,6 +267,7 @@ class Session:
             "frame_size": None if self.frame_size is None else list(self.frame_size),
             "ttl": self.ttl,
             "tracker": None if self.tracker is None else self.tracker.to_state(compact=compact),
+            "snap": self.snap_outline,
         }
 
     @classmethod
@@ -255,6 +290,7 @@ class Session:
                 tracker=None if state is None else Tracker.from_state(state),
                 frame_size=_size(record.get("frame_size")),
                 ttl=None if record.get("ttl") is None else float(record["ttl"]),
+                snap_outline=None if record.get("snap") is None else list(record["snap"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"malformed session record: {exc}") from None

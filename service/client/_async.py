@@ -107,13 +107,17 @@ class AsyncClient:
         nodes: ArrayLike | None = None,
         *,
         circle: CircleSpec | None = None,
+        box: ArrayLike | None = None,
+        snap: bool | None = None,
         closed: bool = True,
         stiffness: float | None = None,
         method: Method | None = None,
         tracking: Mapping[str, Any] | None = None,
     ) -> Session:
         """Create a session; see :meth:`Client.create_session`."""
-        body = c.session_body(nodes, circle, closed, stiffness, method, tracking)
+        body = c.session_body(
+            nodes, circle, closed, stiffness, method, tracking, box=box, snap=snap
+        )
         return c.parse_session(await self._call("POST", "/v1/sessions", json=body))
 
     async def get_session(self, session: str | Session) -> Session:

@@ -283,12 +283,22 @@ def session_body(
     stiffness: float | None,
     method: Method | None,
     tracking: Mapping[str, Any] | None,
+    *,
+    box: ArrayLike | None = None,
+    snap: bool | None = None,
 ) -> dict[str, Any]:
     """The JSON body of ``POST /v1/sessions`` (server defaults where None)."""
-    if (nodes is None) == (circle is None):
-        raise ValueError("give exactly one of nodes or circle")
+    if sum(v is not None for v in (nodes, circle, box)) != 1:
+        raise ValueError("give exactly one of nodes, circle or box")
     body: dict[str, Any] = {"closed": closed}
-    if nodes is not None:
+    if snap is not None:
+        body["snap"] = bool(snap)
+    if box is not None:
+        corners = np.asarray(box, dtype=np.float64)
+        if corners.shape != (4,) or not np.isfinite(corners).all():
+            raise ValueError("box must be four finite numbers [x0, y0, x1, y1]")
+        body["box"] = corners.tolist()
+    elif nodes is not None:
         body["nodes"] = points(nodes, "nodes").tolist()
     elif circle is not None:
         center = np.asarray(circle[0], dtype=np.float64).reshape(2).tolist()

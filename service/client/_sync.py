@@ -89,6 +89,8 @@ class Client:
         nodes: ArrayLike | None = None,
         *,
         circle: CircleSpec | None = None,
+        box: ArrayLike | None = None,
+        snap: bool | None = None,
         closed: bool = True,
         stiffness: float | None = None,
         method: Method | None = None,
@@ -103,6 +105,12 @@ class Client:
         circle : tuple, optional
             ``(center, radius)`` or ``(center, radius, count)`` instead of
             ``nodes``: a circle of ``count`` (default 64) nodes.
+        box : array_like, optional
+            ``[x0, y0, x1, y1]`` around the object, pixel edges, instead of
+            ``nodes``: 64 nodes, snapped onto the object on the first frame.
+        snap : bool, optional
+            Snap the outline onto the object on the first frame (server
+            default: true for ``box``, false otherwise).
         closed : bool
             Closed ring (needed for tracking) or open chain.
         stiffness, method, tracking : optional
@@ -116,11 +124,13 @@ class Client:
         Raises
         ------
         ValueError
-            Neither or both of ``nodes`` and ``circle``; nodes not (N, 2).
+            Not exactly one of ``nodes``, ``circle`` and ``box``; nodes not (N, 2).
         ApiError
             422 invalid contour or options, 429 too many sessions.
         """
-        body = c.session_body(nodes, circle, closed, stiffness, method, tracking)
+        body = c.session_body(
+            nodes, circle, closed, stiffness, method, tracking, box=box, snap=snap
+        )
         return c.parse_session(self._call("POST", "/v1/sessions", json=body))
 
     def get_session(self, session: str | Session) -> Session:

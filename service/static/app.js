@@ -19,6 +19,7 @@
     closePolygon: $("close-polygon"),
     clear: $("clear"),
     apiKey: $("api-key"),
+    snap: $("snap"),
     track: $("track"),
     stop: $("stop"),
     stage: $("stage"),
@@ -543,6 +544,7 @@
           }
         : { nodes: contour.points.map((p) => p.map(r1)) };
     body.ttl_seconds = SESSION_TTL_SECONDS;
+    body.snap = ui.snap.checked; // the server snaps the outline on the first frame
     const key = ui.apiKey.value.trim();
     ui.track.disabled = true;
     setStatus("Creating a session…");

@@ -1,0 +1,118 @@
+"""``"box"`` and ``"snap"`` at ``POST /v1/sessions``: a rough outline snaps on the first frame."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from engine.geometry import contour_to_mask, mask_iou
+from tests.service.conftest import LiveServer, disc_frame
+
+JPEG = {"content-type": "image/jpeg"}
+CENTRE, RADIUS = (160.0, 120.0), 40  # disc_frame's disc
+BOX = [118, 78, 203, 163]  # around it, a few pixels loose
+
+
+def truth() -> np.ndarray:
+    mask = np.zeros((240, 320), np.uint8)
+    cv2.circle(mask, (160, 120), RADIUS, 255, -1)
+    return mask
+
+
+def iou(nodes: list[list[float]]) -> float:
+    return mask_iou(contour_to_mask(np.asarray(nodes), (240, 320)), truth())
+
+
+def test_a_box_snaps_onto_the_object_on_the_first_frame(client: TestClient) -> None:
+    created = client.post("/v1/sessions", json={"box": BOX})
+    assert created.status_code == 201, created.text
+    body = created.json()
+    assert len(body["nodes"]) == 64
+    assert iou(body["nodes"]) < 0.85  # the box itself, until a frame is seen
+    sid = body["id"]
+    first = client.post(f"/v1/sessions/{sid}/frames", content=disc_frame(*CENTRE), headers=JPEG)
+    assert first.status_code == 200, first.text
+    assert iou(first.json()["nodes"]) > 0.9
+    moved = client.post(
+        f"/v1/sessions/{sid}/frames", content=disc_frame(165.0, 122.0), headers=JPEG
+    )
+    assert moved.json()["frame_index"] == 1  # and it tracks on from there
+
+
+@pytest.mark.parametrize("snap", [False, None])
+def test_snap_false_keeps_the_box_and_nodes_do_not_snap_by_default(
+    client: TestClient, snap: bool | None
+) -> None:
+    spec: dict[str, object] = (
+        {"box": BOX, "snap": False}
+        if snap is False
+        else {"circle": {"center": [160, 120], "radius": 55}}
+    )
+    sid = client.post("/v1/sessions", json=spec).json()["id"]
+    first = client.post(f"/v1/sessions/{sid}/frames", content=disc_frame(*CENTRE), headers=JPEG)
+    assert iou(first.json()["nodes"]) < 0.85
+
+
+def test_a_loose_circle_snaps_when_asked(client: TestClient) -> None:
+    spec = {"circle": {"center": [160, 120], "radius": 55, "count": 48}, "snap": True}
+    sid = client.post("/v1/sessions", json=spec).json()["id"]
+    first = client.post(f"/v1/sessions/{sid}/frames", content=disc_frame(*CENTRE), headers=JPEG)
+    nodes = first.json()["nodes"]
+    assert len(nodes) == 48
+    assert iou(nodes) > 0.9
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ({"box": [10, 10, 5, 20]}, "x1 > x0"),
+        ({"box": [10, 10, 20, 10]}, "y1 > y0"),
+        ({"box": [10, 10, 20]}, ""),
+        ({"box": [0, 0, "a", 1]}, ""),
+        ({"box": BOX, "circle": {"center": [1, 1], "radius": 2}}, "exactly one"),
+        ({"box": BOX, "closed": False}, "closed"),
+    ],
+)
+def test_bad_boxes_are_a_422_and_store_nothing(
+    client: TestClient, spec: dict[str, object], message: str
+) -> None:
+    before = client.get("/v1/sessions").json()["sessions"]
+    response = client.post("/v1/sessions", json=spec)
+    assert response.status_code == 422
+    assert message in response.text
+    assert client.get("/v1/sessions").json()["sessions"] == before
+
+
+def test_a_box_outside_the_first_frame_is_a_422_that_changes_nothing(client: TestClient) -> None:
+    sid = client.post("/v1/sessions", json={"box": [1000, 1000, 1100, 1100]}).json()["id"]
+    before = client.get(f"/v1/sessions/{sid}").json()
+    refused = client.post(f"/v1/sessions/{sid}/frames", content=disc_frame(*CENTRE), headers=JPEG)
+    assert refused.status_code == 422
+    assert "outside the frame" in refused.text
+    assert client.get(f"/v1/sessions/{sid}").json() == before
+
+
+def test_the_python_client_starts_from_a_box(live_server: LiveServer) -> None:
+    from service.client import Client
+
+    frame = cv2.imdecode(np.frombuffer(disc_frame(*CENTRE), np.uint8), cv2.IMREAD_COLOR)
+    with Client(live_server.url) as api:
+        session = api.create_session(box=BOX)
+        result = api.track_frame(session, np.asarray(frame, np.uint8))
+        with pytest.raises(ValueError, match="exactly one"):
+            api.create_session(box=BOX, nodes=[[0, 0], [1, 0], [1, 1]])
+    assert iou(result.nodes.tolist()) > 0.9
+
+
+def test_a_pending_snap_survives_the_shared_store_record() -> None:
+    from service.schemas import SessionCreate
+    from service.sessions import Session
+
+    session = Session.create(SessionCreate(box=(118.0, 78.0, 203.0, 163.0)), None, max_nodes=4096)
+    restored = Session.from_record(session.to_record(compact=True))
+    assert restored.snap_outline == [118.0, 78.0, 203.0, 163.0]
+    frame = cv2.imdecode(np.frombuffer(disc_frame(*CENTRE), np.uint8), cv2.IMREAD_COLOR)
+    assert iou(restored.track(np.asarray(frame, np.uint8))["nodes"]) > 0.9
+    assert Session.from_record(restored.to_record()).snap_outline is None
