@@ -18,6 +18,7 @@ __all__ = [
     "contour_to_mask",
     "mask_iou",
     "mask_to_contour",
+    "mask_to_contours",
     "outward_normals",
     "polygon_area",
     "resample",
@@ -211,6 +212,53 @@ def mask_to_contour(mask: ArrayLike, count: int) -> Nodes:
     if len(largest) < 3:
         raise ValueError("mask's object is too small for a contour")
     return resample(largest, count, closed=True)
+
+
+MIN_PIECE_NODES = 16
+"""Fewest nodes of a piece of :func:`mask_to_contours`: enough for the chain to hold
+a small blob's shape."""
+
+
+def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> list[Nodes]:
+    """Every separate piece of a binary mask as a contour, largest first.
+
+    Parameters
+    ----------
+    mask : array_like
+        H x W, non-zero = object.
+    count : int
+        Nodes in all, shared by the pieces in proportion to their perimeters,
+        each piece at least :data:`MIN_PIECE_NODES` (and at least 3); the total
+        can then exceed ``count``.
+    min_area : float
+        Pieces of fewer pixels are left out (the largest piece never is).
+
+    Raises
+    ------
+    ValueError
+        If the mask is empty or not two-dimensional, or ``count`` < 3.
+    """
+    m = np.asarray(mask)
+    if m.ndim != 2:
+        raise ValueError(f"mask must be two-dimensional; got shape {m.shape}")
+    if count < 3:
+        raise ValueError(f"count must be at least 3; got {count}")
+    binary = (m > 0).astype(np.uint8)
+    found, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    outlines = [c.reshape(-1, 2).astype(np.float64) for c in found if len(c) >= 3]
+    if not outlines:
+        raise ValueError("mask has no object pixels")
+    # pixels of a piece: its outline's area plus half its length plus one (Pick's theorem)
+    areas = [abs(polygon_area(c)) + perimeter(c) / 2 + 1 for c in outlines]
+    order = np.argsort(areas)[::-1]
+    kept = [outlines[i] for k, i in enumerate(order) if k == 0 or areas[i] >= min_area]
+    lengths = np.array([max(perimeter(c), 1.0) for c in kept])
+    shares = lengths / lengths.sum()
+    floor = min(MIN_PIECE_NODES, count)
+    return [
+        resample(c, max(floor, 3, round(count * share)), closed=True)
+        for c, share in zip(kept, shares, strict=True)
+    ]
 
 
 def mask_iou(a: ArrayLike, b: ArrayLike) -> float:

@@ -15,6 +15,7 @@ from engine.tracking.appearance import ColourHistogram
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.maps import Maps
 from engine.tracking.options import TrackerOptions
+from engine.tracking.pieces import PiecesResult, PiecesTracker
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.refinement import Refinement, refine
 from engine.tracking.segmentation import BandCut
@@ -35,6 +36,8 @@ __all__ = [
     "FlowMotion",
     "Maps",
     "MotionModel",
+    "PiecesResult",
+    "PiecesTracker",
     "Prediction",
     "Refinement",
     "RegionEdgeCues",
