@@ -189,14 +189,22 @@ class MaskWriter:
             raise CliError(f"cannot create {folder}: {exc.strerror or exc}", EXIT_IO) from None
 
     def write(
-        self, name: str, index: int, nodes: NDArray[np.float64], shape: tuple[int, int]
+        self,
+        name: str,
+        index: int,
+        nodes: NDArray[np.float64] | list[NDArray[np.float64]],
+        shape: tuple[int, int],
     ) -> None:
-        """Write frame ``index`` (input ``name``) of size ``shape`` (height, width)."""
+        """Write frame ``index`` (input ``name``) of size ``shape`` (height, width): the
+        pixels inside the contour ``nodes`` (or inside any of a list of contours)."""
         from engine.geometry import contour_to_mask
 
         stem = Path(name).stem if self.named else f"{index:05d}"
         path = self.folder / f"{stem}.png"
-        mask = (contour_to_mask(nodes, shape) > 0).astype(np.uint8) * 255
+        inside = np.zeros(shape, np.uint8)
+        for piece in nodes if isinstance(nodes, list) else [nodes]:
+            inside |= contour_to_mask(piece, shape)
+        mask = (inside > 0).astype(np.uint8) * 255
         if not cv2.imwrite(str(path), mask):
             raise CliError(f"cannot write {path}", EXIT_IO)
 
@@ -268,12 +276,19 @@ class OverlayWriter:
         self._thickness = max(1, round(min(size) / 240))
 
     def write(
-        self, frame: Image, nodes: NDArray[np.float64], index: int, confidence: float
+        self,
+        frame: Image,
+        nodes: NDArray[np.float64] | list[NDArray[np.float64]],
+        index: int,
+        confidence: float,
     ) -> None:
-        """Draw the closed contour ``nodes`` and a caption on a copy of ``frame``; append it."""
+        """Draw the closed contour ``nodes`` (or each of a list of contours) and a caption
+        on a copy of ``frame``; append it."""
         canvas = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR) if frame.ndim == 2 else frame.copy()
-        if len(nodes) and np.isfinite(nodes).all():
-            scaled = np.round(np.clip(nodes, -1e5, 1e5) * (1 << self.SHIFT)).astype(np.int32)
+        for piece in nodes if isinstance(nodes, list) else [nodes]:
+            if not (len(piece) and np.isfinite(piece).all()):
+                continue
+            scaled = np.round(np.clip(piece, -1e5, 1e5) * (1 << self.SHIFT)).astype(np.int32)
             cv2.polylines(
                 canvas, [scaled.reshape(-1, 1, 2)], True, self.COLOR, self._thickness,
                 cv2.LINE_AA, self.SHIFT,

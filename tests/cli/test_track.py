@@ -331,16 +331,28 @@ def test_a_loose_circle_snaps_when_asked(folder: Path, tmp_path: Path) -> None:
     assert mask_iou(contour_to_mask(first, (H, W)), truth) > 0.85  # 0.35 for the circle given
 
 
-def test_a_mask_in_several_pieces_warns_which_are_dropped(
+def test_a_mask_in_several_pieces_tracks_each_and_warns_of_specks_left_out(
     folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     mask = np.zeros((H, W), np.uint8)
     cv2.circle(mask, (40, 60), R, 255, -1)
-    cv2.rectangle(mask, (120, 10), (129, 19), 255, -1)  # a second piece, 100 px
-    path = tmp_path / "two.png"
+    cv2.rectangle(mask, (120, 10), (139, 29), 255, -1)  # a second piece, 400 px
+    mask[110:112, 150:152] = 255  # a speck, 4 px
+    path = tmp_path / "pieces.png"
     assert cv2.imwrite(str(path), mask)
-    argv = ["track", str(folder / "frame_00[01].png"), "--init-mask", str(path), "-q"]
-    assert main([*argv, "-o", str(tmp_path / "t.jsonl")]) == 0
+    out, masks = tmp_path / "t.jsonl", tmp_path / "masks"
+    argv = ["track", str(folder / "frame_00[012].png"), "--init-mask", str(path), "-q"]
+    assert main([*argv, "-o", str(out), "--masks-out", str(masks)]) == 0
     err = capsys.readouterr().err
-    assert "2 separate pieces" in err
-    assert "dropped: 100 px" in err
+    assert "3 separate pieces; 1 under --min-piece-area 100 px left out: 4 px" in err
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    assert all("nodes" not in r and len(r["contours"]) == 2 for r in records)
+    first = records[0]["contours"]
+    assert len(first[0]) > len(first[1])  # the larger piece first, more nodes
+    written = cv2.imread(str(masks / "frame_000.png"), cv2.IMREAD_GRAYSCALE)
+    assert written is not None
+    assert written[20, 130] == 255  # the square is in the mask
+    assert written[60, 40] == 255  # and the disc
+    assert main([*argv, "--min-piece-area", "1000", "-o", str(out)]) == 0
+    assert "2 under --min-piece-area 1000 px" in capsys.readouterr().err
+    assert "nodes" in json.loads(out.read_text().splitlines()[0])  # one piece: as before
