@@ -14,6 +14,7 @@ from engine.tracking._warm import warm_up
 from engine.tracking.appearance import ColourHistogram
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.maps import Maps
+from engine.tracking.objects import ObjectResult, ObjectsTracker, label_mask
 from engine.tracking.options import TrackerOptions
 from engine.tracking.pieces import PiecesResult, PiecesTracker
 from engine.tracking.prediction import FlowMotion
@@ -36,6 +37,8 @@ __all__ = [
     "FlowMotion",
     "Maps",
     "MotionModel",
+    "ObjectResult",
+    "ObjectsTracker",
     "PiecesResult",
     "PiecesTracker",
     "Prediction",
@@ -45,6 +48,7 @@ __all__ = [
     "TrackResult",
     "Tracker",
     "TrackerOptions",
+    "label_mask",
     "refine",
     "warm_up",
 ]

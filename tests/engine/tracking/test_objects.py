@@ -1,0 +1,95 @@
+"""engine.tracking.ObjectsTracker: several objects through the same frames, by id."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
+from engine.testing.crowd import make_crowd
+from engine.tracking import ObjectResult, ObjectsTracker, label_mask
+
+CROWD = make_crowd(seed=0, length=20)
+COUNT = len(CROWD.masks)
+
+
+def overlapping() -> set[int]:
+    """Objects whose masks meet another's in some frame."""
+    found = set()
+    for a in range(COUNT):
+        for b in range(a + 1, COUNT):
+            if any((ma & mb).any() for ma, mb in zip(CROWD.masks[a], CROWD.masks[b], strict=True)):
+                found |= {a, b}
+    return found
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_eight_objects_keep_their_ids_and_their_outlines(workers: int) -> None:
+    assert COUNT == 8
+    assert overlapping()  # the scene has objects crossing each other
+    tracker = ObjectsTracker(
+        {f"o{k}": mask_to_contour(CROWD.masks[k][0], 64) for k in range(COUNT)}, workers=workers
+    )
+    ious = np.zeros((COUNT, len(CROWD.frames)))
+    for t, frame in enumerate(CROWD.frames):
+        results = tracker.step(frame)
+        assert [r.id for r in results] == [f"o{k}" for k in range(COUNT)]
+        for k, r in enumerate(results):
+            ious[k, t] = mask_iou(
+                contour_to_mask(r.contours[0], frame.shape[:2]), CROWD.masks[k][t]
+            )
+    mean = ious[:, 1:].mean(axis=1)
+    # every object keeps its own identity: its track overlaps its own mask, not a neighbour's
+    assert (ious[:, -1] > 0.5).all()
+    free = [k for k in range(COUNT) if k not in overlapping()]
+    assert (mean[free] >= 0.95).all()
+    assert (mean >= 0.7).all()  # the one hidden behind another loses some of its outline
+
+
+def test_objects_are_added_corrected_and_removed_between_frames() -> None:
+    frames = CROWD.frames
+    tracker = ObjectsTracker({"a": mask_to_contour(CROWD.masks[0][0], 48)})
+    tracker.step(frames[0])
+    tracker.add("b", mask_to_contour(CROWD.masks[2][1], 48))
+    assert [r.id for r in tracker.step(frames[1])] == ["a", "b"]
+    tracker.replace("a", mask_to_contour(CROWD.masks[0][2], 48))  # a correction
+    results = tracker.step(frames[2])
+    assert (
+        mask_iou(contour_to_mask(results[0].contours[0], frames[2].shape[:2]), CROWD.masks[0][2])
+        > 0.95
+    )
+    tracker.remove("b")
+    assert [r.id for r in tracker.step(frames[3])] == ["a"]
+    with pytest.raises(ValueError, match="exists"):
+        tracker.add("a", circle_nodes((50, 50), 10, 16))
+    with pytest.raises(KeyError):
+        tracker.remove("zz")
+    with pytest.raises(ValueError, match="at most 1"):
+        ObjectsTracker(
+            {"x": circle_nodes((50, 50), 10, 16), "y": circle_nodes((90, 50), 10, 16)},
+            max_objects=1,
+        )
+
+
+def test_an_object_in_pieces_gives_its_contours() -> None:
+    pieces = [circle_nodes((100, 100), 20, 32), circle_nodes((200, 100), 15, 24)]
+    tracker = ObjectsTracker({"kite": pieces, "surfer": circle_nodes((300, 300), 25, 40)})
+    first = tracker.step(CROWD.frames[0])
+    assert [len(r.contours) for r in first] == [2, 1]
+
+
+def test_bad_frames_move_no_object() -> None:
+    tracker = ObjectsTracker({"a": circle_nodes((100, 100), 20, 32)})
+    with pytest.raises(ValueError, match="uint8"):
+        tracker.step(np.zeros((50, 50), np.float32))
+
+
+def test_the_more_confident_object_wins_an_overlap() -> None:
+    shape = (100, 100)
+    a = ObjectResult("a", [circle_nodes((40, 50), 20, 32)], 0.9, "tracking")
+    b = ObjectResult("b", [circle_nodes((60, 50), 20, 32)], 0.6, "tracking")
+    labels = label_mask([a, b], shape)
+    assert labels[50, 50] == 1  # both cover it: a is the surer one
+    assert labels[50, 75] == 2
+    assert labels[5, 5] == 0
+    assert label_mask([b, a], shape)[50, 50] == 2  # the order does not matter
