@@ -14,6 +14,7 @@ __all__ = [
     "MIN_PIECE_AREA",
     "initial_contour",
     "initial_contours",
+    "initial_objects",
     "parse_box",
     "parse_circle",
     "parse_polygon",
@@ -111,6 +112,49 @@ def _read_mask(path: str, label: int | None) -> NDArray[np.bool_]:
         return object_mask(head, image, f"mask {path}", label)
     except MaskError as exc:
         raise CliError(str(exc), EXIT_INVALID) from None
+
+
+def initial_objects(
+    args: argparse.Namespace, size: tuple[int, int], first: NDArray[np.uint8] | None = None
+) -> dict[int, list[Nodes]]:
+    """Each object's initial contours (one per piece), by id.
+
+    Several objects come from several ``--init-box`` (ids 1, 2, ... in their
+    order) or from an ``--init-mask`` label image of several labels without
+    ``--label`` (ids: the labels); otherwise there is one object, id 1.
+    """
+    boxes: list[str] = list(args.init_box or [])
+    if len(boxes) > 1:
+        if any(getattr(args, o[2:].replace("-", "_")) is not None for o in _INIT_OPTIONS[2:]):
+            raise CliError("--init-box cannot be combined with another --init-*", EXIT_INVALID)
+        return {
+            k: [initial_contour(argparse.Namespace(**{**vars(args), "init_box": box}), size, first)]
+            for k, box in enumerate(boxes, start=1)
+        }
+    one = argparse.Namespace(**{**vars(args), "init_box": boxes[0] if boxes else None})
+    if args.init_mask is not None and getattr(args, "label", None) is None:
+        labels = _labels_in(args.init_mask)
+        if len(labels) > 1:
+            return {
+                k: initial_contours(argparse.Namespace(**{**vars(one), "label": k}), size, first)
+                for k in labels
+            }
+    return {1: initial_contours(one, size, first)}
+
+
+def _labels_in(path: str) -> list[int]:
+    """The non-zero labels of a mask file (a binary mask has one)."""
+    import cv2
+
+    from efdm_cli._io import read_image
+    from efdm_cli._masks import MaskError, labels_of
+
+    image = read_image(path, cv2.IMREAD_UNCHANGED)
+    try:
+        labels = labels_of(image, f"mask {path}")
+    except MaskError:
+        return []  # the single-object path says what is wrong with it
+    return [int(v) for v in np.unique(labels) if v != 0]
 
 
 def initial_contours(

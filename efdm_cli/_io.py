@@ -14,7 +14,7 @@ from collections.abc import Generator
 from fractions import Fraction
 from pathlib import Path
 from types import TracebackType
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -206,6 +206,21 @@ class MaskWriter:
             inside |= contour_to_mask(piece, shape)
         mask = (inside > 0).astype(np.uint8) * 255
         if not cv2.imwrite(str(path), mask):
+            raise CliError(f"cannot write {path}", EXIT_IO)
+
+    def write_labels(
+        self, name: str, index: int, objects: list[Any], shape: tuple[int, int]
+    ) -> None:
+        """Write frame ``index`` as a label image: each pixel the id of its object (0: none),
+        8-bit; where objects overlap, the more confident one's
+        (:func:`engine.tracking.label_mask`)."""
+        from engine.tracking.objects import label_mask
+
+        stem = Path(name).stem if self.named else f"{index:05d}"
+        path = self.folder / f"{stem}.png"
+        labels = label_mask(objects, shape)
+        ids = np.array([0, *(int(o.id) for o in objects)], np.uint8)
+        if not cv2.imwrite(str(path), ids[labels]):
             raise CliError(f"cannot write {path}", EXIT_IO)
 
 

@@ -34,7 +34,7 @@ from efdm_cli._common import EXIT_INVALID, EXIT_IO, CliError
 from efdm_cli._init import (
     MIN_PIECE_AREA,
     initial_contour,
-    initial_contours,
+    initial_objects,
     parse_box,
     parse_circle,
     parse_polygon,
@@ -77,7 +77,39 @@ def parse_options(items: list[str]) -> dict[str, Any]:
     return options
 
 
+class _Crowd:
+    """Several objects' results of one frame, as one :class:`StepResult` (worst status,
+    lowest confidence) that also carries each object's."""
+
+    ORDER = ("lost", "uncertain", "tracking")
+
+    def __init__(self, objects: list[Any]) -> None:
+        self.objects = objects
+        self.nodes = objects[0].contours[0]
+        self.contours = [c for o in objects for c in o.contours]
+        self.iterations, self.converged = 0, True
+        self.confidence = min(float(o.confidence) for o in objects)
+        self.status = min((str(o.status) for o in objects), key=self.ORDER.index)
+
+
+def _shape(contours: list[Nodes]) -> dict[str, Any]:
+    """``{"nodes": ...}`` for one contour, ``{"contours": [...]}`` for several pieces."""
+    rounded = [np.round(np.asarray(c, np.float64), 3).tolist() for c in contours]
+    return {"nodes": rounded[0]} if len(rounded) == 1 else {"contours": rounded}
+
+
 def _record(index: int, result: StepResult, elapsed_ms: float) -> str:
+    if isinstance(result, _Crowd):
+        objects = [
+            {
+                "id": o.id,
+                **_shape(o.contours),
+                "confidence": round(float(o.confidence), 4),
+                "status": str(o.status),
+            }
+            for o in result.objects
+        ]
+        return json.dumps({"frame": index, "objects": objects, "elapsed_ms": round(elapsed_ms, 3)})
     pieces = getattr(result, "contours", None)
     shape: dict[str, Any]
     if pieces is None:
@@ -130,6 +162,7 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
     from efdm_cli._io import ImageFrames, MaskWriter, OverlayWriter, check_size, open_frames
     from efdm_cli._progress import Progress
     from engine.physics.recursive import warm_up
+    from engine.tracking.objects import ObjectsTracker
     from engine.tracking.pieces import PiecesTracker
     from engine.tracking.tracker import Tracker
 
@@ -147,10 +180,13 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             raise CliError(f"cannot read any frame from {args.input}", EXIT_IO)
         height, width = first[1].shape[:2]
         size = (width, height)
-        contours = initial_contours(args, size, first[1])
-        tracker: Tracker | PiecesTracker
+        objects = initial_objects(args, size, first[1])
+        contours = next(iter(objects.values()))
+        tracker: Tracker | PiecesTracker | ObjectsTracker
         try:
-            if len(contours) > 1:
+            if len(objects) > 1:
+                tracker = ObjectsTracker(objects, **options)
+            elif len(contours) > 1:
                 tracker = PiecesTracker(contours, **options)
             else:
                 tracker = Tracker(contours[0], closed=True, **options)
@@ -178,9 +214,10 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             check_size(name, index, frame, size)
             start = time.perf_counter()
             try:
-                result = tracker.step(frame)
+                stepped = tracker.step(frame)
             except ValueError as exc:
                 raise CliError(f"frame {index} ({name}): {exc}", EXIT_INVALID) from None
+            result: StepResult = _Crowd(stepped) if isinstance(stepped, list) else stepped
             elapsed_ms = 1e3 * (time.perf_counter() - start)
             try:
                 sink.write(_record(index, result, elapsed_ms) + "\n")
@@ -196,7 +233,9 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             drawn = getattr(result, "contours", None) or np.asarray(result.nodes)
             if overlay is not None:
                 overlay.write(frame, drawn, index, float(result.confidence))
-            if masks is not None:
+            if masks is not None and isinstance(result, _Crowd):
+                masks.write_labels(name, index, result.objects, (height, width))
+            elif masks is not None:
                 masks.write(name, index, drawn, (height, width))
             confidences.append(float(result.confidence))
             statuses.append(str(result.status))
@@ -253,13 +292,16 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--label",
         type=int,
         metavar="K",
-        help="with --init-mask: the object of label K (needed when the mask has several)",
+        help="with --init-mask: only the object of label K (without it, a label image of "
+        "several labels gives several objects, their ids the labels)",
     )
     init.add_argument(
         "--init-box",
+        action="append",
         metavar="X0,Y0,X1,Y1",
         help="a box around the object in pixel edges (the box of a mask spanning columns "
-        "x0..x1-1, rows y0..y1-1); snapped onto the object inside it unless --no-snap",
+        "x0..x1-1, rows y0..y1-1); snapped onto the object inside it unless --no-snap; "
+        "repeat for several objects (ids 1, 2, ...)",
     )
     init.add_argument("--init-polygon", metavar='"X,Y X,Y ..."', help="polygon, >= 3 points")
     init.add_argument("--init-circle", metavar="CX,CY,R", help="circle, centre and radius")

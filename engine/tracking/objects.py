@@ -80,7 +80,7 @@ class ObjectsTracker:
 
     def __init__(
         self,
-        objects: Mapping[Hashable, ArrayLike | Sequence[ArrayLike]] | None = None,
+        objects: Mapping[Any, ArrayLike | Sequence[ArrayLike]] | None = None,
         *,
         max_objects: int = MAX_OBJECTS,
         workers: int = 1,

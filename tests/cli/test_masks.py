@@ -43,14 +43,24 @@ def first_centre(tmp_path: Path, argv: list[str]) -> NDArray[np.float64]:
     return centre
 
 
-def test_a_grey_label_image_needs_a_label_and_gives_its_object(
+def test_a_grey_label_image_gives_every_object_or_the_one_of_its_label(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     mask = tmp_path / "labels.png"
     assert cv2.imwrite(str(mask), two_objects())
     argv = ["track", str(frames(tmp_path)), "--init-mask", str(mask)]
-    assert main([*argv, "-q"]) == EXIT_INVALID
-    assert "label image of 2 objects (1, 2): choose one with --label" in capsys.readouterr().err
+    out, masks = tmp_path / "all.jsonl", tmp_path / "labels"
+    assert main([*argv, "-q", "-n", "32", "-o", str(out), "--masks-out", str(masks)]) == 0
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(records) == 3
+    for record in records:
+        assert [o["id"] for o in record["objects"]] == [1, 2]
+        assert {o["status"] for o in record["objects"]} <= {"tracking", "uncertain", "lost"}
+    centres = [np.asarray(o["nodes"]).mean(axis=0) for o in records[0]["objects"]]
+    np.testing.assert_allclose(centres, [[40, 60], [115, 60]], atol=1)
+    written = cv2.imread(str(masks / "000.png"), cv2.IMREAD_UNCHANGED)
+    assert written is not None
+    assert (written[60, 40], written[60, 115], written[5, 5]) == (1, 2, 0)  # labels, as given
     np.testing.assert_allclose(first_centre(tmp_path, [*argv, "--label", "2"]), [115, 60], atol=1)
     np.testing.assert_allclose(first_centre(tmp_path, [*argv, "--label", "1"]), [40, 60], atol=1)
     assert main([*argv, "--label", "3", "-q"]) == EXIT_INVALID
@@ -119,3 +129,18 @@ def test_label_without_a_mask_is_an_error(
 
 def test_mask_error_is_a_value_error() -> None:
     assert issubclass(MaskError, ValueError)
+
+
+def test_several_boxes_give_several_snapped_objects(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "boxes.jsonl"
+    argv = ["track", str(frames(tmp_path)), "--init-box", "17,37,64,84"]
+    argv += ["--init-box", "94,39,137,82", "-n", "32", "-q"]
+    assert main([*argv, "-o", str(out)]) == 0
+    first = json.loads(out.read_text().splitlines()[0])
+    assert [o["id"] for o in first["objects"]] == [1, 2]
+    centres = [np.asarray(o["nodes"]).mean(axis=0) for o in first["objects"]]
+    np.testing.assert_allclose(centres, [[40, 60], [115, 60]], atol=1.5)  # snapped, not boxes
+    assert main([*argv, "--init-circle", "40,60,20"]) == EXIT_INVALID
+    assert "--init-box cannot be combined" in capsys.readouterr().err
