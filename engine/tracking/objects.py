@@ -31,6 +31,7 @@ from engine.tracking.tracker import Tracker
 
 __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
 
+KIND = "objects"
 MAX_OBJECTS = 32
 """Objects one tracker follows at most by default (a frame's cost grows with each)."""
 
@@ -135,6 +136,36 @@ class ObjectsTracker:
             contours = list(r.contours) if hasattr(r, "contours") else [r.nodes]
             out.append(ObjectResult(key, contours, float(r.confidence), r.status))
         return out
+
+    def to_state(self, **kwargs: Any) -> dict[str, Any]:
+        """``{"kind": "objects", "max_objects", "objects": [[id, state], ...]}``, JSON-able
+        for JSON-able ids (``kwargs`` as :meth:`Tracker.to_state`'s)."""
+        return {
+            "kind": KIND,
+            "max_objects": self.max_objects,
+            "objects": [[key, t.to_state(**kwargs)] for key, t in self.trackers.items()],
+        }
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, Any], *, workers: int = 1) -> ObjectsTracker:
+        """Rebuild from :meth:`to_state` output; ValueError if malformed."""
+        if not isinstance(state, Mapping) or state.get("kind") != KIND:
+            raise ValueError("an objects tracker state must be a dict of kind 'objects'")
+        entries = state.get("objects")
+        if not isinstance(entries, list):
+            raise ValueError("an objects tracker state needs a list of objects")
+        restored = cls(max_objects=int(state.get("max_objects", MAX_OBJECTS)), workers=workers)
+        for entry in entries:
+            if not isinstance(entry, list | tuple) or len(entry) != 2:
+                raise ValueError("each object of the state must be [id, state]")
+            key, inner = entry
+            key = tuple(key) if isinstance(key, list) else key  # JSON turns tuples into lists
+            if key in restored.trackers or len(restored.trackers) >= restored.max_objects:
+                raise ValueError(f"object {key!r}: repeated, or one too many")
+            is_pieces = isinstance(inner, Mapping) and inner.get("kind") == "pieces"
+            tracker = PiecesTracker.from_state(inner) if is_pieces else Tracker.from_state(inner)
+            restored.trackers[key] = tracker
+        return restored
 
 
 def _is_list_of_contours(value: Sequence[object]) -> bool:

@@ -93,3 +93,32 @@ def test_the_more_confident_object_wins_an_overlap() -> None:
     assert labels[50, 75] == 2
     assert labels[5, 5] == 0
     assert label_mask([b, a], shape)[50, 50] == 2  # the order does not matter
+
+
+def test_an_objects_state_resumes_exactly() -> None:
+    import json
+
+    tracker = ObjectsTracker(
+        {
+            1: mask_to_contour(CROWD.masks[0][0], 48),
+            "two": [circle_nodes((300, 300), 20, 32), circle_nodes((350, 300), 15, 24)],
+        }
+    )
+    for frame in CROWD.frames[:3]:
+        tracker.step(frame)
+    resumed = ObjectsTracker.from_state(json.loads(json.dumps(tracker.to_state())))
+    for frame in CROWD.frames[3:6]:
+        a, b = tracker.step(frame), resumed.step(frame)
+        assert [r.id for r in a] == [r.id for r in b] == [1, "two"]
+        for x, y in zip(a, b, strict=True):
+            for cx, cy in zip(x.contours, y.contours, strict=True):
+                np.testing.assert_array_equal(cx, cy)
+
+
+@pytest.mark.parametrize(
+    "state",
+    [{}, {"kind": "objects"}, {"kind": "objects", "objects": [[1]]}, {"kind": "pieces"}],
+)
+def test_malformed_objects_states_are_refused(state: dict[str, object]) -> None:
+    with pytest.raises(ValueError, match="object"):
+        ObjectsTracker.from_state(state)
