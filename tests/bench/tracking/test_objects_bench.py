@@ -1,0 +1,19 @@
+"""``python -m bench.tracking.objects``: its report (the run itself is a minute of tracking)."""
+
+from __future__ import annotations
+
+from bench.tracking import objects
+
+
+def test_the_report_gives_ratios_and_the_worst_object() -> None:
+    results = {
+        "seed 0": {
+            "iou": [0.99, 0.75],
+            "swaps": 0,
+            "alone_ms": 4.0,
+            "together_ms": 32.0,
+            "two_threads_ms": 20.0,
+        }
+    }
+    report = objects.render(results, 12.0)
+    assert "| seed 0 | 0.99 0.75 | 0.75 | 0 | 4.0 | 32.0 (8.0x) | 20.0 (5.0x) |" in report
