@@ -8,7 +8,8 @@
 - :mod:`~bench.common.machine`: what machine a run was on;
 - :mod:`~bench.common.timing`: warm-up, calibrated repeats, medians;
 - :mod:`~bench.common.processes`: ports, subprocesses, CPU time;
-- :mod:`~bench.common.data`: the DAVIS-2016 sequences and the synthetic sequences.
+- :mod:`~bench.common.data`: the DAVIS-2016 sequences and the synthetic sequences;
+- :mod:`~bench.common.study`: the command line of a one-off study over the DAVIS sets.
 
 Importing this package loads nothing but :mod:`pathlib`.
 """

@@ -11,7 +11,6 @@ another's mask than to its own at the last frame), and the median time per frame
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -21,6 +20,7 @@ import numpy as np
 
 from bench.common import RESULTS
 from bench.common.output import write_results
+from bench.common.study import single_threaded
 
 SEEDS = (0, 1, 2)
 LENGTH = 40
@@ -115,8 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--out", type=Path, default=RESULTS, help="output directory")
     args = parser.parse_args(argv)
-    for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
-        os.environ[variable] = "1"
+    single_threaded()
     start = time.perf_counter()
     results = run()
     seconds = time.perf_counter() - start

@@ -14,9 +14,7 @@ and writes ``snap.md`` and ``snap.json``:
 
 from __future__ import annotations
 
-import argparse
 import multiprocessing
-import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -25,9 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from bench.common import RESULTS
-from bench.common.data import DAVIS_ROOT, DAVIS_TRAIN_ROOT, davis_names
-from bench.common.output import write_results
+from bench.common.data import davis_names
+from bench.common.study import study_main
 
 NODES = 128
 """Contour nodes, as the tracking benchmark's."""
@@ -136,27 +133,7 @@ def render(results: dict[str, Any], seconds: float) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help=f"{QUICK_SEQUENCES} sequences a set")
-    parser.add_argument("--out", type=Path, default=RESULTS, help="output directory")
-    args = parser.parse_args(argv)
-    for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
-        os.environ[variable] = "1"
-    sets = {
-        label: root
-        for label, root in (("davis-train", DAVIS_TRAIN_ROOT), ("davis-val", DAVIS_ROOT))
-        if davis_names(root)
-    }
-    if not sets:
-        print("bench.tracking.snap: no DAVIS data under ../shared/data", file=sys.stderr)
-        return 1
-    start = time.perf_counter()
-    results = run(sets, args.quick)
-    seconds = time.perf_counter() - start
-    report = render(results, seconds)
-    write_results(args.out, "snap", report, {"sets": results, "wall_seconds": seconds})
-    print(report)
-    return 0
+    return study_main(argv, __doc__, "snap", run, render, f"{QUICK_SEQUENCES} sequences a set")
 
 
 if __name__ == "__main__":

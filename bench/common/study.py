@@ -1,0 +1,71 @@
+"""The command line of a one-off study over the DAVIS sets (``--quick``, ``--out``).
+
+A study (``python -m bench.serving.state``, ``python -m bench.tracking.snap``) runs over
+every DAVIS-2016 set there is, on one thread per process, and writes ``<stem>.md`` and
+``<stem>.json``; :func:`study_main` is the part they share.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from bench.common import RESULTS
+from bench.common.data import DAVIS_ROOT, DAVIS_TRAIN_ROOT, davis_names
+from bench.common.output import write_results
+
+__all__ = ["davis_sets", "single_threaded", "study_main"]
+
+THREAD_VARIABLES = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "NUMBA_NUM_THREADS",
+)
+
+
+def single_threaded() -> None:
+    """One thread for the numeric libraries of this process and of those it starts."""
+    for variable in THREAD_VARIABLES:
+        os.environ[variable] = "1"
+
+
+def davis_sets() -> dict[str, Path]:
+    """The DAVIS-2016 sets present, by label (``davis-train``, ``davis-val``)."""
+    found = (("davis-train", DAVIS_TRAIN_ROOT), ("davis-val", DAVIS_ROOT))
+    return {label: root for label, root in found if davis_names(root)}
+
+
+def study_main(
+    argv: list[str] | None,
+    doc: str | None,
+    stem: str,
+    run: Callable[[dict[str, Path], bool], dict[str, Any]],
+    render: Callable[[dict[str, Any], float], str],
+    quick_help: str,
+) -> int:
+    """Parse ``--quick`` and ``--out``, run over the sets, write and print the report.
+
+    Returns 1 (with a message on stderr) when no DAVIS set is there, else 0.
+    """
+    parser = argparse.ArgumentParser(description=(doc or stem).splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    parser.add_argument("--out", type=Path, default=RESULTS, help="output directory")
+    args = parser.parse_args(argv)
+    single_threaded()
+    sets = davis_sets()
+    if not sets:
+        print(f"{stem}: no DAVIS data under ../shared/data", file=sys.stderr)
+        return 1
+    start = time.perf_counter()
+    results = run(sets, args.quick)
+    seconds = time.perf_counter() - start
+    report = render(results, seconds)
+    write_results(args.out, stem, report, {"sets": results, "wall_seconds": seconds})
+    print(report)
+    return 0
