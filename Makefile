@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking bench-service bench-load clean
+.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking bench-service bench-load bench-studies clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -44,7 +44,7 @@ test-container: $(STAMP)
 	PYTHON=$(BIN)/python bash docker/test-container.sh
 
 ## bench: every benchmark (python -m bench.<family>); results land in bench/results/
-bench: bench-solvers bench-tracking bench-service bench-load
+bench: bench-solvers bench-tracking bench-service bench-load bench-studies
 
 bench-solvers: $(STAMP)
 	$(BIN)/python -m bench.solvers
@@ -55,6 +55,12 @@ bench-tracking: $(STAMP)
 ## bench-service: a real `efdm serve` on loopback against engine.Tracker in-process (bench/serving)
 bench-service: $(STAMP)
 	$(BIN)/python -m bench.serving
+
+## bench-studies: Redis state size and resume quality, snapping boxes, several objects (DAVIS, crowd)
+bench-studies: $(STAMP)
+	$(BIN)/python -m bench.serving.state
+	$(BIN)/python -m bench.tracking.snap
+	$(BIN)/python -m bench.tracking.objects
 
 ## bench-load: concurrent WebSocket sessions on 1 and 2 replicas sharing a Redis (redis-server)
 bench-load: $(STAMP)
