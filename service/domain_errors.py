@@ -11,6 +11,7 @@ __all__ = [
     "BadImageError",
     "ImageTooLargeError",
     "InvalidInputError",
+    "ObjectNotFoundError",
     "PreconditionFailedError",
     "ServiceError",
     "SessionNotFoundError",
@@ -64,6 +65,10 @@ class SessionNotFoundError(ServiceError):
 
     def __init__(self, message: str = "no such session (unknown, expired or deleted)") -> None:
         super().__init__(message)
+
+
+class ObjectNotFoundError(ServiceError):
+    """An object id the session does not hold."""
 
 
 class PreconditionFailedError(ServiceError):

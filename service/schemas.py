@@ -43,6 +43,49 @@ BOX_NODES = 64
 """Nodes of a contour started from a box (as a circle's default ``count``)."""
 
 
+MAX_OBJECTS = 32
+"""Objects one session tracks at most (each costs about one tracker's time per frame)."""
+ObjectId = Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$", description="object id")]
+
+
+class ObjectSpec(BaseModel):
+    """One object of a session: exactly one of ``nodes``, ``circle``, ``box`` or ``mask``."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    id: ObjectId | None = Field(None, description="default: the next free number, as text")
+    nodes: list[Point] | None = Field(None, description="contour, [[x, y], ...]")
+    circle: Circle | None = None
+    box: tuple[Finite, Finite, Finite, Finite] | None = Field(
+        None, description="[x0, y0, x1, y1], pixel edges; snapped unless 'snap' is false"
+    )
+    mask: str | None = Field(
+        None,
+        max_length=4 * 1024 * 1024,
+        description="PNG (base64) of the frames' size, non-zero on the object; every separate "
+        "piece of at least 100 pixels becomes one of the object's contours",
+    )
+    snap: bool | None = Field(None, description="snap the outline on the next frame")
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> ObjectSpec:
+        given = [k for k in ("nodes", "circle", "box", "mask") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of 'nodes', 'circle', 'box' or 'mask'")
+        if self.box is not None and not (self.box[2] > self.box[0] and self.box[3] > self.box[1]):
+            raise ValueError(
+                f"box must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0; got {list(self.box)}"
+            )
+        if self.mask is not None and self.snap:
+            raise ValueError("a mask is the object's outline already: it does not snap")
+        return self
+
+    @property
+    def snaps(self) -> bool:
+        """Whether the outline is snapped onto the object on the next frame."""
+        return self.box is not None if self.snap is None else self.snap
+
+
 class SessionCreate(BaseModel):
     """``POST /v1/sessions``: the initial contour and the model."""
 
@@ -61,6 +104,12 @@ class SessionCreate(BaseModel):
         description="snap the outline onto the object inside it on the first frame (GrabCut; "
         "under a second at 854x480): default true for 'box', false for 'nodes' and 'circle'",
     )
+    objects: list[ObjectSpec] | None = Field(
+        None,
+        max_length=MAX_OBJECTS,
+        description=f"several objects (at most {MAX_OBJECTS}) instead of one contour; frame "
+        "results then carry 'objects'",
+    )
     closed: bool = True
     stiffness: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)] = 10.0
     method: Method = "exact"
@@ -75,9 +124,17 @@ class SessionCreate(BaseModel):
 
     @model_validator(mode="after")
     def _one_contour(self) -> SessionCreate:
-        given = [k for k in ("nodes", "circle", "box") if getattr(self, k) is not None]
+        given = [k for k in ("nodes", "circle", "box", "objects") if getattr(self, k) is not None]
         if len(given) != 1:
-            raise ValueError("give exactly one of 'nodes', 'circle' or 'box'")
+            raise ValueError("give exactly one of 'nodes', 'circle', 'box' or 'objects'")
+        if self.objects is not None:
+            ids = [o.id for o in self.objects if o.id is not None]
+            if len(ids) != len(set(ids)):
+                raise ValueError("object ids must differ")
+            if not self.objects or not self.closed or self.snap is not None:
+                raise ValueError(
+                    "'objects' needs at least one object, closed contours, and 'snap' per object"
+                )
         if self.box is not None:
             x0, y0, x1, y1 = self.box
             if not (x1 > x0 and y1 > y0):
@@ -106,6 +163,7 @@ class SessionOut(BaseModel):
     frame_index: int = Field(description="index of the last tracked frame; -1 before any")
     version: int = Field(description="incremented by every change; use with If-Match")
     expires_at: str = Field(description="ISO 8601 UTC; idle sessions expire")
+    objects: list[ObjectOut] | None = Field(None, description="a session of several objects")
 
 
 class SessionListed(BaseModel):
@@ -142,6 +200,16 @@ class ForcesOut(BaseModel):
     version: int
 
 
+class ObjectOut(BaseModel):
+    """One object's contour(s) and, in a frame result, its status."""
+
+    id: str
+    nodes: list[Point] | None = Field(None, description="its contour (one piece)")
+    contours: list[list[Point]] | None = Field(None, description="its pieces' contours")
+    confidence: float | None = Field(None, ge=0, le=1)
+    status: Literal["tracking", "uncertain", "lost"] | None = None
+
+
 class FrameOut(BaseModel):
     """Result of tracking one frame."""
 
@@ -162,6 +230,9 @@ class FrameOut(BaseModel):
     )
     version: int
     elapsed_ms: float
+    objects: list[ObjectOut] | None = Field(
+        None, description="a session of several objects: each one's contour(s) and status"
+    )
 
 
 class StreamFrameOut(FrameOut):

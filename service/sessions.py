@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import secrets
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,6 +20,7 @@ from engine.geometry import circle_nodes, mask_to_contour, resample
 from engine.physics import MODAL_METHODS
 from engine.tracking.snap import snap
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
+from service.objects import SessionObjects
 from service.schemas import BOX_NODES, LIMIT, SessionCreate
 from service.units import TIMES
 
@@ -71,6 +73,7 @@ class Session:
     ttl: float | None = None  # idle seconds to expiry, when shorter than the server's
     # the outline to snap onto the object on the next frame: a box or a polygon (None: done)
     snap_outline: list[Any] | None = None
+    objects: SessionObjects | None = None  # a session of several objects
 
     def lifetime(self, server_ttl: float) -> float:
         """Idle seconds before this session expires: its own TTL, at most the server's."""
@@ -85,6 +88,22 @@ class Session:
         InvalidInputError
             Too few or too many nodes, or tracker options it cannot take.
         """
+        if spec.objects is not None:
+            objects = SessionObjects.create(spec.objects, dict(spec.tracking), max_nodes)
+            first = objects.describe()[0]
+            nodes = np.asarray(first.get("nodes") or first["contours"][0], dtype=np.float64)
+            return cls(
+                id=new_id(),
+                owner=owner,
+                closed=True,
+                stiffness=spec.stiffness,
+                method=spec.method,
+                tracking=dict(spec.tracking),
+                rest=nodes.copy(),
+                nodes=nodes.copy(),
+                ttl=spec.ttl_seconds,
+                objects=objects,
+            )
         if spec.circle is not None:
             c = spec.circle
             if c.count > max_nodes:
@@ -150,6 +169,8 @@ class Session:
         InvalidInputError
             Not one force per node, or forces the model cannot take.
         """
+        if self.objects is not None:
+            raise InvalidInputError("forces act on a session of one contour, not of 'objects'")
         F = np.asarray(forces, dtype=np.float64)
         if F.shape != self.rest.shape:
             raise InvalidInputError(
@@ -188,6 +209,8 @@ class Session:
         BadImageError
             The tracker cannot use the frame.
         """
+        if self.objects is not None:
+            return self._track_objects(frame)
         if self.tracker is None:
             raise InvalidInputError("frames need a closed contour (an object boundary)")
         start = time.perf_counter()
@@ -229,6 +252,49 @@ class Session:
             "elapsed_ms": (time.perf_counter() - start) * 1e3,
         }
 
+    def _track_objects(self, frame: NDArray[np.uint8]) -> dict[str, Any]:
+        """One step of every object; the frame result with ``objects``."""
+        if self.objects is None:
+            raise InvalidInputError("this session tracks one contour")
+        start = time.perf_counter()
+        try:
+            found = self.objects.step(frame)
+        except ValueError as exc:
+            raise BadImageError(str(exc)) from None
+        self.frame_size = (int(frame.shape[1]), int(frame.shape[0]))
+        self.frame_index += 1
+        self.version += 1
+        first = found[0] if found else None
+        nodes = self.nodes if first is None else first.get("nodes") or first["contours"][0]
+        self.nodes = np.asarray(nodes, dtype=np.float64)
+        self.rest = self.nodes.copy()
+        order = ("lost", "uncertain", "tracking")
+        return {
+            "frame_index": self.frame_index,
+            "nodes": self.nodes.tolist(),
+            "iterations": 0,
+            "converged": True,
+            "confidence": min((o["confidence"] for o in found), default=0.0),
+            "status": min((o["status"] for o in found), key=order.index, default="lost"),
+            "reset": None,
+            "version": self.version,
+            "elapsed_ms": (time.perf_counter() - start) * 1e3,
+            "objects": found,
+        }
+
+    def change_objects(self, change: Callable[[SessionObjects], Any]) -> Any:
+        """Apply an add, correction or removal of objects; a new version.
+
+        Raises InvalidInputError for a session of one contour.
+        """
+        if self.objects is None:
+            raise InvalidInputError(
+                "this session tracks one contour; create it with 'objects' to track several"
+            )
+        result = change(self.objects)
+        self.version += 1
+        return result
+
     def _snap(self, frame: NDArray[np.uint8]) -> None:
         """Replace the contour by the object inside the outline on this frame.
 
@@ -268,6 +334,7 @@ class Session:
             "ttl": self.ttl,
             "tracker": None if self.tracker is None else self.tracker.to_state(compact=compact),
             "snap": self.snap_outline,
+            "objects": None if self.objects is None else self.objects.to_state(compact=compact),
         }
 
     @classmethod
@@ -291,13 +358,16 @@ class Session:
                 frame_size=_size(record.get("frame_size")),
                 ttl=None if record.get("ttl") is None else float(record["ttl"]),
                 snap_outline=None if record.get("snap") is None else list(record["snap"]),
+                objects=None
+                if record.get("objects") is None
+                else SessionObjects.from_state(record["objects"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"malformed session record: {exc}") from None
 
     def describe(self, ttl: float) -> dict[str, Any]:
-        """The API's view of the session."""
-        return {
+        """The API's view of the session (``objects`` only for a session of several)."""
+        view = {
             "id": self.id,
             "nodes": self.nodes.tolist(),
             "closed": self.closed,
@@ -308,3 +378,6 @@ class Session:
             "version": self.version,
             "expires_at": expiry(self.touched, self.lifetime(ttl)),
         }
+        if self.objects is not None:
+            view["objects"] = self.objects.describe()
+        return view

@@ -1,4 +1,4 @@
-"""``/v1/sessions``: create, read, delete; forces and frames."""
+"""``/v1/sessions``: create, read, delete; forces and frames; a session's objects."""
 
 from __future__ import annotations
 
@@ -17,6 +17,9 @@ from service.schemas import (
     ForcesIn,
     ForcesOut,
     FrameOut,
+    ObjectId,
+    ObjectOut,
+    ObjectSpec,
     SessionCreate,
     SessionList,
     SessionOut,
@@ -48,7 +51,13 @@ def check_version(session: Session, if_match: str | None) -> None:
         session.expect_version(wanted)
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=SessionOut, responses=ERRORS)
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    response_model=SessionOut,
+    response_model_exclude_unset=True,  # "objects" only for a session of several
+    responses=ERRORS,
+)
 async def create_session(
     spec: SessionCreate,
     response: Response,
@@ -103,7 +112,9 @@ async def list_sessions(
     return {"sessions": sessions, "next": following}
 
 
-@router.get("/{session_id}", response_model=SessionOut, responses=ERRORS)
+@router.get(
+    "/{session_id}", response_model=SessionOut, response_model_exclude_unset=True, responses=ERRORS
+)
 async def get_session(
     session_id: str, response: Response, owner: OwnerDep, settings: SettingsDep, store: StoreDep
 ) -> dict[str, Any]:
@@ -191,7 +202,11 @@ async def read_image(request: Request, settings: Settings) -> tuple[bytes, str |
 
 
 @router.post(
-    "/{session_id}/frames", response_model=FrameOut, responses=ERRORS, openapi_extra=FRAME_BODY
+    "/{session_id}/frames",
+    response_model=FrameOut,
+    response_model_exclude_unset=True,  # "objects" only for a session of several
+    responses=ERRORS,
+    openapi_extra=FRAME_BODY,
 )
 async def track_frame(
     session_id: str,
@@ -213,3 +228,75 @@ async def track_frame(
     metrics.FRAMES.labels(transport="rest").inc()
     metrics.FRAME_SECONDS.labels(transport="rest").observe(time.perf_counter() - start)
     return result
+
+
+@router.post(
+    "/{session_id}/objects",
+    status_code=status.HTTP_201_CREATED,
+    response_model=ObjectOut,
+    responses=ERRORS,
+)
+async def add_object(
+    session_id: str,
+    spec: ObjectSpec,
+    response: Response,
+    owner: OwnerDep,
+    settings: SettingsDep,
+    store: StoreDep,
+    if_match: IfMatch = None,
+) -> dict[str, Any]:
+    """Add an object to a session of ``objects``; it is tracked from the next frame on."""
+    async with store.lease(session_id, owner) as session:
+        check_version(session, if_match)
+        key = session.change_objects(lambda objects: objects.add(spec, settings.max_nodes))
+        response.headers["ETag"] = f'"{session.version}"'
+        response.headers["Location"] = f"/v1/sessions/{session_id}/objects/{key}"
+        return {"id": key, **_shape_of(session, key)}
+
+
+@router.put("/{session_id}/objects/{object_id}", response_model=ObjectOut, responses=ERRORS)
+async def replace_object(
+    session_id: str,
+    object_id: ObjectId,
+    spec: ObjectSpec,
+    response: Response,
+    owner: OwnerDep,
+    settings: SettingsDep,
+    store: StoreDep,
+    if_match: IfMatch = None,
+) -> dict[str, Any]:
+    """Correct an object: it starts anew from this outline on the next frame."""
+    async with store.lease(session_id, owner) as session:
+        check_version(session, if_match)
+        session.change_objects(lambda objects: objects.replace(object_id, spec, settings.max_nodes))
+        response.headers["ETag"] = f'"{session.version}"'
+        return {"id": object_id, **_shape_of(session, object_id)}
+
+
+@router.delete(
+    "/{session_id}/objects/{object_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    responses=ERRORS,
+)
+async def remove_object(
+    session_id: str,
+    object_id: ObjectId,
+    owner: OwnerDep,
+    store: StoreDep,
+    if_match: IfMatch = None,
+) -> Response:
+    """Stop tracking an object (from the next frame on)."""
+    async with store.lease(session_id, owner) as session:
+        check_version(session, if_match)
+        session.change_objects(lambda objects: objects.remove(object_id))
+        return Response(
+            status_code=status.HTTP_204_NO_CONTENT, headers={"ETag": f'"{session.version}"'}
+        )
+
+
+def _shape_of(session: Session, key: str) -> dict[str, Any]:
+    """An object's contour(s) as the API shows them."""
+    described = {} if session.objects is None else {o["id"]: o for o in session.objects.describe()}
+    found = dict(described.get(key, {}))
+    found.pop("id", None)
+    return found

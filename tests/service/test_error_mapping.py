@@ -22,6 +22,7 @@ CASES: list[tuple[d.ServiceError, int, str, dict[str, str]]] = [
     (d.ImageTooLargeError("too many pixels"), 413, "too_large", {}),
     (d.UnsupportedImageTypeError("'text/plain'"), 415, "unsupported_media_type", {}),
     (d.SessionNotFoundError(), 404, "not_found", {}),
+    (d.ObjectNotFoundError("no object 'k'"), 404, "object_not_found", {}),
     (d.PreconditionFailedError("at version 2, not 1"), 412, "version_mismatch", {}),
     (d.VersionConflictError(), 409, "conflict", {}),
     (d.StreamReplacedError(), 409, "stream_replaced", {}),

@@ -1,0 +1,218 @@
+"""Several objects in one session: their outlines, what waits for a frame, their tracker.
+
+A session created with ``"objects"`` follows each through the same frames
+(:class:`engine.tracking.ObjectsTracker`).  An object given as a box (or an
+outline with ``snap``) snaps onto the object on the next frame, and one given
+as a mask must match that frame's size: both are checked on the frame, for
+every object at once, before anything changes (a 422 leaves the session as it
+was).  Coordinates are ``[x, y]`` pixels.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import circle_nodes, contour_to_mask, mask_to_contours, resample
+from engine.tracking import ObjectsTracker
+from engine.tracking.snap import snap
+from service.domain_errors import InvalidInputError, ObjectNotFoundError
+from service.schemas import BOX_NODES, MAX_OBJECTS, ObjectSpec
+
+__all__ = ["SessionObjects"]
+
+MASK_NODES = 128
+"""Nodes of an object given as a mask, shared by its pieces."""
+MIN_PIECE_AREA = 100.0
+"""Pixels a separate piece of a mask needs to be tracked (as ``efdm track``'s default)."""
+PNG_MAGIC = b"\x89PNG"
+
+Contours = list[NDArray[np.float64]]
+
+
+def _box_outline(box: tuple[float, float, float, float], count: int) -> NDArray[np.float64]:
+    x0, y0, x1, y1 = box  # pixel edges; the outline runs through the edge pixels' centres
+    right, bottom = max(x1 - 1.0, x0 + 1e-3), max(y1 - 1.0, y0 + 1e-3)
+    corners = np.array([[x0, y0], [right, y0], [right, bottom], [x0, bottom]])
+    return resample(corners, count, closed=True)
+
+
+def _mask(text: str) -> NDArray[np.uint8]:
+    try:
+        data = base64.b64decode(text, validate=True)
+    except (binascii.Error, ValueError):
+        raise InvalidInputError("mask: not base64") from None
+    if data[:4] != PNG_MAGIC:
+        raise InvalidInputError("mask: not a PNG (a mask must be lossless)")
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise InvalidInputError("mask: the PNG does not decode")
+    return np.asarray(image, np.uint8)
+
+
+def outline(spec: ObjectSpec, max_nodes: int) -> tuple[Contours, dict[str, Any]]:
+    """An object's contours and what waits for the next frame (``snap`` or ``size``)."""
+    if spec.circle is not None:
+        c = spec.circle
+        if c.count > max_nodes:
+            raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
+        contours = [circle_nodes(c.center, c.radius, c.count)]
+    elif spec.box is not None:
+        contours = [_box_outline(spec.box, min(BOX_NODES, max_nodes))]
+    elif spec.nodes is not None:
+        contours = [np.asarray(spec.nodes, dtype=np.float64)]
+        if not 3 <= len(contours[0]) <= max_nodes:
+            raise InvalidInputError(f"nodes: need 3 to {max_nodes}; got {len(contours[0])}")
+    else:
+        mask = _mask(str(spec.mask))
+        try:
+            contours = mask_to_contours(mask, MASK_NODES, min_area=MIN_PIECE_AREA)
+        except ValueError as exc:
+            raise InvalidInputError(f"mask: {exc}") from None
+        return contours, {"size": [int(mask.shape[1]), int(mask.shape[0])]}
+    waiting: dict[str, Any] = {"check": True}
+    if spec.snaps:
+        waiting["snap"] = list(spec.box) if spec.box is not None else contours[0].tolist()
+    return contours, waiting
+
+
+class SessionObjects:
+    """The objects of a session and their tracker.
+
+    Parameters
+    ----------
+    tracker : ObjectsTracker
+        One tracker per object, by id (text).
+    waiting : dict
+        Object id -> what its next frame must settle: ``"snap"`` (an outline
+        to snap), ``"size"`` (a mask's width and height), ``"check"`` (the
+        contour must overlap the frame).
+    """
+
+    def __init__(self, tracker: ObjectsTracker, waiting: dict[str, dict[str, Any]]) -> None:
+        self.tracker, self.waiting = tracker, waiting
+
+    @classmethod
+    def create(
+        cls, specs: list[ObjectSpec], tracking: dict[str, Any], max_nodes: int
+    ) -> SessionObjects:
+        """The objects of a new session; InvalidInputError on a bad outline or option."""
+        try:
+            made = cls(ObjectsTracker(max_objects=MAX_OBJECTS, **tracking), {})
+        except (TypeError, ValueError) as exc:
+            raise InvalidInputError(f"tracking: {exc}") from None
+        for spec in specs:
+            made.add(spec, max_nodes)
+        return made
+
+    def _free_id(self) -> str:
+        number = len(self.tracker.trackers) + 1
+        while str(number) in self.tracker.trackers:
+            number += 1
+        return str(number)
+
+    def add(self, spec: ObjectSpec, max_nodes: int) -> str:
+        """Follow a new object from the next frame on; its id."""
+        key = spec.id or self._free_id()
+        if key in self.tracker.trackers:
+            raise InvalidInputError(f"object {key!r} exists already")
+        contours, waiting = outline(spec, max_nodes)
+        try:
+            self.tracker.add(key, contours)
+        except ValueError as exc:
+            raise InvalidInputError(f"object {key!r}: {exc}") from None
+        self.waiting[key] = waiting
+        return key
+
+    def replace(self, key: str, spec: ObjectSpec, max_nodes: int) -> None:
+        """A correction: the object starts anew from ``spec`` on the next frame."""
+        if key not in self.tracker.trackers:
+            raise ObjectNotFoundError(f"no object {key!r} in this session")
+        if spec.id is not None and spec.id != key:
+            raise InvalidInputError(f"the body names object {spec.id!r}, the URL {key!r}")
+        contours, waiting = outline(spec, max_nodes)
+        try:
+            self.tracker.replace(key, contours)
+        except ValueError as exc:
+            raise InvalidInputError(f"object {key!r}: {exc}") from None
+        self.waiting[key] = waiting
+
+    def remove(self, key: str) -> None:
+        """Stop following an object."""
+        if key not in self.tracker.trackers:
+            raise ObjectNotFoundError(f"no object {key!r} in this session")
+        self.tracker.remove(key)
+        self.waiting.pop(key, None)
+
+    def _settle(self, frame: NDArray[np.uint8]) -> dict[str, Contours]:
+        """The new contours of the objects waiting for this frame; checks all first."""
+        height, width = frame.shape[:2]
+        settled: dict[str, Contours] = {}
+        for key, waiting in self.waiting.items():
+            size = waiting.get("size")
+            if size is not None and tuple(size) != (width, height):
+                raise InvalidInputError(
+                    f"object {key!r}: its mask is {size[0]}x{size[1]}, the frame {width}x{height}"
+                )
+            if "snap" in waiting:
+                try:
+                    found = snap(frame, waiting["snap"])
+                    settled[key] = mask_to_contours(found, BOX_NODES, min_area=MIN_PIECE_AREA)
+                except ValueError as exc:
+                    raise InvalidInputError(f"object {key!r}: snap: {exc}") from None
+            elif waiting.get("check"):
+                contours = self.contours(key)
+                if not any(contour_to_mask(c, (height, width)).any() for c in contours):
+                    raise InvalidInputError(
+                        f"object {key!r} lies outside the frame ({width}x{height})"
+                    )
+        return settled
+
+    def contours(self, key: str) -> Contours:
+        """An object's current contours."""
+        tracker = self.tracker.trackers[key]
+        return list(tracker.contours) if hasattr(tracker, "contours") else [tracker.nodes]
+
+    def step(self, frame: NDArray[np.uint8]) -> list[dict[str, Any]]:
+        """Track every object into ``frame`` (waiting ones settled first); their results."""
+        for key, contours in self._settle(frame).items():
+            self.tracker.replace(key, contours)
+        self.waiting = {}
+        results = self.tracker.step(frame)
+        return [
+            {
+                "id": str(r.id),
+                **_shape(r.contours),
+                "confidence": float(r.confidence),
+                "status": r.status,
+            }
+            for r in results
+        ]
+
+    def describe(self) -> list[dict[str, Any]]:
+        """Each object's id and contour(s)."""
+        return [
+            {"id": str(key), **_shape(self.contours(str(key)))} for key in self.tracker.trackers
+        ]
+
+    def to_state(self, *, compact: bool = False) -> dict[str, Any]:
+        """JSON-able; :meth:`from_state` rebuilds it."""
+        return {"tracker": self.tracker.to_state(compact=compact), "waiting": self.waiting}
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any]) -> SessionObjects:
+        """Inverse of :meth:`to_state`; ValueError if malformed."""
+        waiting = state.get("waiting")
+        if not isinstance(waiting, dict):
+            raise ValueError("objects: 'waiting' must be a dict")
+        return cls(ObjectsTracker.from_state(state["tracker"]), dict(waiting))
+
+
+def _shape(contours: Contours) -> dict[str, Any]:
+    rounded = [np.asarray(c, np.float64).tolist() for c in contours]
+    return {"nodes": rounded[0]} if len(rounded) == 1 else {"contours": rounded}
