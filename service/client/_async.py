@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import AsyncGenerator, AsyncIterable, Iterable, Mapping
+from collections.abc import AsyncGenerator, AsyncIterable, Iterable, Mapping, Sequence
 from types import TracebackType
 from typing import Any
 
@@ -109,6 +109,7 @@ class AsyncClient:
         circle: CircleSpec | None = None,
         box: ArrayLike | None = None,
         snap: bool | None = None,
+        objects: Sequence[Mapping[str, Any]] | None = None,
         closed: bool = True,
         stiffness: float | None = None,
         method: Method | None = None,
@@ -116,7 +117,7 @@ class AsyncClient:
     ) -> Session:
         """Create a session; see :meth:`Client.create_session`."""
         body = c.session_body(
-            nodes, circle, closed, stiffness, method, tracking, box=box, snap=snap
+            nodes, circle, closed, stiffness, method, tracking, box=box, snap=snap, objects=objects
         )
         return c.parse_session(await self._call("POST", "/v1/sessions", json=body))
 

@@ -145,6 +145,10 @@ class FrameResult:
         streaming only; always 0 over REST and with ``max_in_flight=1``).
     reset : str or None
         Why this frame restarted tracking (the frame size changed), or None.
+    objects : tuple of dict
+        A session of several objects: each one's ``{"id", "nodes"`` (or
+        ``"contours"``, a list of them, for an object in pieces; read-only
+        arrays)``, "confidence", "status"}``; empty otherwise.
     """
 
     frame_index: int
@@ -157,6 +161,7 @@ class FrameResult:
     dropped: int = 0
     status: str = "tracking"
     reset: str | None = None
+    objects: tuple[dict[str, Any], ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,11 +291,14 @@ def session_body(
     *,
     box: ArrayLike | None = None,
     snap: bool | None = None,
+    objects: Sequence[Mapping[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """The JSON body of ``POST /v1/sessions`` (server defaults where None)."""
-    if sum(v is not None for v in (nodes, circle, box)) != 1:
-        raise ValueError("give exactly one of nodes, circle or box")
+    if sum(v is not None for v in (nodes, circle, box, objects)) != 1:
+        raise ValueError("give exactly one of nodes, circle, box or objects")
     body: dict[str, Any] = {"closed": closed}
+    if objects is not None:
+        body["objects"] = [dict(o) for o in objects]
     if snap is not None:
         body["snap"] = bool(snap)
     if box is not None:
@@ -369,7 +377,18 @@ def parse_frame(data: Mapping[str, Any]) -> FrameResult:
         dropped=int(data.get("dropped", 0)),
         status=str(data.get("status", "tracking")),
         reset=None if data.get("reset") is None else str(data["reset"]),
+        objects=tuple(_object(o) for o in data.get("objects") or ()),
     )
+
+
+def _object(data: Mapping[str, Any]) -> dict[str, Any]:
+    """One object of a frame result, its contours as read-only arrays."""
+    found = dict(data)
+    if found.get("nodes") is not None:
+        found["nodes"] = _readonly(found["nodes"])
+    if found.get("contours") is not None:
+        found["contours"] = [_readonly(c) for c in found["contours"]]
+    return found
 
 
 def parse_forces(data: Mapping[str, Any]) -> ForcesResult:

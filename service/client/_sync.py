@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Generator, Iterable, Mapping
+from collections.abc import Generator, Iterable, Mapping, Sequence
 from types import TracebackType
 from typing import Any
 
@@ -91,6 +91,7 @@ class Client:
         circle: CircleSpec | None = None,
         box: ArrayLike | None = None,
         snap: bool | None = None,
+        objects: Sequence[Mapping[str, Any]] | None = None,
         closed: bool = True,
         stiffness: float | None = None,
         method: Method | None = None,
@@ -111,6 +112,10 @@ class Client:
         snap : bool, optional
             Snap the outline onto the object on the first frame (server
             default: true for ``box``, false otherwise).
+        objects : sequence of dict, optional
+            Several objects instead (the API's ``"objects"``: each a dict
+            of ``nodes``, ``circle``, ``box`` or ``mask``, with optional
+            ``id`` and ``snap``); frame results then carry ``objects``.
         closed : bool
             Closed ring (needed for tracking) or open chain.
         stiffness, method, tracking : optional
@@ -124,12 +129,12 @@ class Client:
         Raises
         ------
         ValueError
-            Not exactly one of ``nodes``, ``circle`` and ``box``; nodes not (N, 2).
+            Not exactly one of ``nodes``, ``circle``, ``box`` and ``objects``; nodes not (N, 2).
         ApiError
             422 invalid contour or options, 429 too many sessions.
         """
         body = c.session_body(
-            nodes, circle, closed, stiffness, method, tracking, box=box, snap=snap
+            nodes, circle, closed, stiffness, method, tracking, box=box, snap=snap, objects=objects
         )
         return c.parse_session(self._call("POST", "/v1/sessions", json=body))
 

@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from engine.geometry import contour_to_mask, mask_iou
-from tests.service.conftest import disc_frame
+from tests.service.conftest import LiveServer, disc_frame
 
 JPEG = {"content-type": "image/jpeg"}
 SIZE = (240, 320)  # disc_frame's frames: a disc of radius 40 at the given centre
@@ -185,3 +185,15 @@ def test_a_session_of_objects_survives_the_shared_store_record() -> None:
     again = Session.from_record(restored.to_record())
     assert again.objects is not None
     assert again.objects.waiting == {}
+
+
+def test_the_python_client_tracks_several_objects(live_server: LiveServer) -> None:
+    from service.client import Client
+
+    image = cv2.imdecode(np.frombuffer(disc_frame(160.0, 120.0), np.uint8), cv2.IMREAD_COLOR)
+    with Client(live_server.url) as api:
+        session = api.create_session(objects=[{"box": BOX}, {"id": "b", "box": [20, 20, 60, 60]}])
+        result = api.track_frame(session, np.asarray(image, np.uint8))
+    assert [o["id"] for o in result.objects] == ["1", "b"]
+    assert iou(result.objects[0]["nodes"].tolist(), (160, 120)) > 0.9
+    assert not result.objects[0]["nodes"].flags.writeable
