@@ -7,6 +7,12 @@ Protocol (JSON text messages from the server carry a ``type``):
 - client text ``{"forces": [[fx, fy], ...]}``: answered by
   ``{"type": "forces", "nodes", "displacements", "version"}``;
 - client text ``{"ping": x}``: answered by ``{"type": "pong", "pong": x}``;
+- in a session of several objects, client text ``{"add_object": {...}}``
+  (an object as ``POST …/objects`` takes it), ``{"replace_object": {"id":
+  ..., ...}}`` (a correction, as ``PUT``) or ``{"remove_object": id}``:
+  answered by ``{"type": "object", "id", "nodes" or "contours", "version"}``
+  (``"removed": true`` and no contour for a removal); they take effect on
+  the next frame;
 - a message the server cannot use: ``{"type": "error", "error": {...}}``, and
   the stream goes on.
 
@@ -59,7 +65,7 @@ from service.domain_errors import (
     StreamReplacedError,
 )
 from service.errors import ApiError, as_api_error
-from service.schemas import ForcesIn
+from service.schemas import ForcesIn, ObjectSpec
 from service.settings import Settings
 from service.shutdown import Stream
 from service.store import StreamLease
@@ -73,6 +79,9 @@ EVERY_QUEUE = 4
 """Messages waiting in ``mode=every`` before the server stops reading: enough to keep
 the tracker busy while the next frame arrives, few enough to bound memory (a few frames)."""
 MODES = ("latest", "every")
+OBJECT_CONTROLS = frozenset({"add_object", "replace_object", "remove_object"})
+CONTROLS = frozenset({"forces", "ping"}) | OBJECT_CONTROLS
+"""The keys a control message may carry (one of them)."""
 
 
 class Inbox:
@@ -232,10 +241,15 @@ async def _receive(websocket: WebSocket, inbox: Inbox | Queue, settings: Setting
                     error_message(ApiError(400, "bad_request", "text messages must be JSON")),
                 )
                 continue
-            if not isinstance(parsed, dict) or not ({"forces", "ping"} & parsed.keys()):
+            if not isinstance(parsed, dict) or not (CONTROLS & parsed.keys()):
                 await _send(
                     websocket,
-                    error_message(InvalidInputError('expected {"forces": [...]} or {"ping": ...}')),
+                    error_message(
+                        InvalidInputError(
+                            'expected {"forces": [...]}, {"ping": ...}, {"add_object": {...}}, '
+                            '{"replace_object": {...}} or {"remove_object": id}'
+                        )
+                    ),
                 )
                 continue
             if not await inbox.put_control(parsed):
@@ -260,7 +274,7 @@ async def _work(
         async with registered.in_flight():  # shutdown waits for this, then closes with 1001
             while inbox.control:
                 control = inbox.control.popleft()
-                await _send(websocket, await _control(lease, control, cpu))
+                await _send(websocket, await _control(lease, control, cpu, settings.max_nodes))
             if inbox.frame is not None:
                 data, dropped = inbox.frame, inbox.dropped
                 inbox.frame, inbox.dropped = None, 0
@@ -282,12 +296,54 @@ async def _work_every(
             if kind == "frame":
                 await _send(websocket, await _frame(lease, item, 0, cpu, settings))
             else:
-                await _send(websocket, await _control(lease, item, cpu))
+                await _send(websocket, await _control(lease, item, cpu, settings.max_nodes))
+
+
+async def _object_control(
+    lease: StreamLease, message: dict[str, Any], max_nodes: int
+) -> dict[str, Any]:
+    """Add, correct or remove one object of a session of several (mid-stream)."""
+    try:
+        if "remove_object" in message:
+            key = message["remove_object"]
+            if not isinstance(key, str):
+                raise InvalidInputError("remove_object: give the object's id (text)")
+            spec = None
+        else:
+            raw = message.get("add_object", message.get("replace_object"))
+            spec = ObjectSpec.model_validate(raw)
+            key = spec.id or ""
+            if "replace_object" in message and not key:
+                raise InvalidInputError("replace_object: give the object's 'id'")
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        return error_message(InvalidInputError(f"{where}: {first['msg']}"))
+    except ServiceError as exc:
+        return error_message(exc)
+    try:
+        async with lease.turn() as session:
+            if spec is None:
+                session.change_objects(lambda objects: objects.remove(key))
+                return {"type": "object", "id": key, "removed": True, "version": session.version}
+            if "add_object" in message:
+                key = session.change_objects(lambda objects: objects.add(spec, max_nodes))
+            else:
+                session.change_objects(lambda objects: objects.replace(key, spec, max_nodes))
+            described = [] if session.objects is None else session.objects.describe()
+            shape = next(o for o in described if o["id"] == key)
+            return {"type": "object", **shape, "version": session.version}
+    except (SessionNotFoundError, StreamReplacedError) as exc:  # gone, or taken over: the end
+        raise _FatalError.of(exc) from None
+    except ServiceError as exc:
+        return error_message(exc)
 
 
 async def _control(
-    lease: StreamLease, message: dict[str, Any], cpu: CapacityLimiter
+    lease: StreamLease, message: dict[str, Any], cpu: CapacityLimiter, max_nodes: int
 ) -> dict[str, Any]:
+    if OBJECT_CONTROLS & message.keys():
+        return await _object_control(lease, message, max_nodes)
     if "ping" in message:
         try:
             json.dumps(message["ping"], allow_nan=False)  # echo only what JSON can carry

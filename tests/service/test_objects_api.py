@@ -197,3 +197,35 @@ def test_the_python_client_tracks_several_objects(live_server: LiveServer) -> No
     assert [o["id"] for o in result.objects] == ["1", "b"]
     assert iou(result.objects[0]["nodes"].tolist(), (160, 120)) > 0.9
     assert not result.objects[0]["nodes"].flags.writeable
+
+
+def test_objects_are_changed_by_control_messages_mid_stream(client: TestClient) -> None:
+    sid = client.post("/v1/sessions", json={"objects": [{"box": BOX}]}).json()["id"]
+    with client.websocket_connect(f"/v1/sessions/{sid}/stream?mode=every") as ws:
+        ws.send_bytes(disc_frame(160.0, 120.0))
+        assert [o["id"] for o in ws.receive_json()["objects"]] == ["1"]
+        ws.send_json({"add_object": {"id": "b", "circle": {"center": [280, 200], "radius": 20}}})
+        added = ws.receive_json()
+        assert (added["type"], added["id"], len(added["nodes"])) == ("object", "b", 64)
+        ws.send_json(
+            {
+                "replace_object": {
+                    "id": "1",
+                    "circle": {"center": [162, 120], "radius": 40, "count": 40},
+                }
+            }
+        )
+        assert ws.receive_json()["id"] == "1"
+        ws.send_bytes(disc_frame(162.0, 120.0))
+        result = ws.receive_json()
+        assert [o["id"] for o in result["objects"]] == ["1", "b"]
+        assert len(result["objects"][0]["nodes"]) == 40  # the correction, on the next frame
+        ws.send_json({"remove_object": "b"})
+        assert ws.receive_json()["removed"] is True
+        ws.send_json({"remove_object": "zz"})
+        missing = ws.receive_json()
+        assert (missing["type"], missing["error"]["code"]) == ("error", "object_not_found")
+        ws.send_json({"replace_object": {"circle": {"center": [1, 1], "radius": 3}}})
+        assert "give the object's 'id'" in ws.receive_json()["error"]["message"]
+        ws.send_bytes(disc_frame(164.0, 120.0))
+        assert [o["id"] for o in ws.receive_json()["objects"]] == ["1"]
