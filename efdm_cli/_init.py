@@ -73,13 +73,6 @@ def parse_box(text: str) -> tuple[float, float, float, float]:
     return values[0], values[1], values[2], values[3]
 
 
-def _box_polygon(box: tuple[float, float, float, float]) -> Nodes:
-    """The box's outline through its edge pixels' centres (pixel edges to centres)."""
-    x0, y0, x1, y1 = box
-    left, top, right, bottom = x0, y0, max(x1 - 1.0, x0), max(y1 - 1.0, y0)
-    return np.array([[left, top], [right, top], [right, bottom], [left, bottom]])
-
-
 def _warn_dropped_pieces(mask: NDArray[np.bool_], what: str, min_area: float) -> None:
     """Say on stderr which separate pieces of the object the track leaves out."""
     import cv2
@@ -197,7 +190,13 @@ def initial_contour(
         Invalid options, an unreadable or empty mask, or a contour entirely
         outside the frame.
     """
-    from engine.geometry import circle_nodes, contour_to_mask, mask_to_contour, resample
+    from engine.geometry import (
+        box_outline,
+        circle_nodes,
+        contour_to_mask,
+        mask_to_contour,
+        resample,
+    )
 
     given = [o for o in _INIT_OPTIONS if getattr(args, o[2:].replace("-", "_")) is not None]
     if len(given) != 1:
@@ -216,7 +215,7 @@ def initial_contour(
         cx, cy, r = parse_circle(args.init_circle)
         nodes = circle_nodes([cx, cy], r, args.nodes)
     elif box is not None:
-        nodes = resample(_box_polygon(parse_box(box)), args.nodes, closed=True)
+        nodes = box_outline(parse_box(box), args.nodes)
     elif args.init_polygon is not None:
         nodes = resample(parse_polygon(args.init_polygon), args.nodes, closed=True)
     else:

@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import base64
 import binascii
+from collections.abc import Callable
 from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import circle_nodes, contour_to_mask, mask_to_contours, resample
+from engine.geometry import box_outline, circle_nodes, contour_to_mask, mask_to_contours
 from engine.tracking import ObjectsTracker
 from engine.tracking.snap import snap
 from service.domain_errors import InvalidInputError, ObjectNotFoundError
@@ -33,13 +34,6 @@ MIN_PIECE_AREA = 100.0
 PNG_MAGIC = b"\x89PNG"
 
 Contours = list[NDArray[np.float64]]
-
-
-def _box_outline(box: tuple[float, float, float, float], count: int) -> NDArray[np.float64]:
-    x0, y0, x1, y1 = box  # pixel edges; the outline runs through the edge pixels' centres
-    right, bottom = max(x1 - 1.0, x0 + 1e-3), max(y1 - 1.0, y0 + 1e-3)
-    corners = np.array([[x0, y0], [right, y0], [right, bottom], [x0, bottom]])
-    return resample(corners, count, closed=True)
 
 
 def _mask(text: str) -> NDArray[np.uint8]:
@@ -63,7 +57,7 @@ def outline(spec: ObjectSpec, max_nodes: int) -> tuple[Contours, dict[str, Any]]
             raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
         contours = [circle_nodes(c.center, c.radius, c.count)]
     elif spec.box is not None:
-        contours = [_box_outline(spec.box, min(BOX_NODES, max_nodes))]
+        contours = [box_outline(spec.box, min(BOX_NODES, max_nodes))]
     elif spec.nodes is not None:
         contours = [np.asarray(spec.nodes, dtype=np.float64)]
         if not 3 <= len(contours[0]) <= max_nodes:
@@ -121,12 +115,7 @@ class SessionObjects:
         key = spec.id or self._free_id()
         if key in self.tracker.trackers:
             raise InvalidInputError(f"object {key!r} exists already")
-        contours, waiting = outline(spec, max_nodes)
-        try:
-            self.tracker.add(key, contours)
-        except ValueError as exc:
-            raise InvalidInputError(f"object {key!r}: {exc}") from None
-        self.waiting[key] = waiting
+        self._place(key, spec, max_nodes, self.tracker.add)
         return key
 
     def replace(self, key: str, spec: ObjectSpec, max_nodes: int) -> None:
@@ -135,9 +124,15 @@ class SessionObjects:
             raise ObjectNotFoundError(f"no object {key!r} in this session")
         if spec.id is not None and spec.id != key:
             raise InvalidInputError(f"the body names object {spec.id!r}, the URL {key!r}")
+        self._place(key, spec, max_nodes, self.tracker.replace)
+
+    def _place(
+        self, key: str, spec: ObjectSpec, max_nodes: int, put: Callable[[str, Contours], None]
+    ) -> None:
+        """Give object ``key`` the outline of ``spec`` (``put``: add or replace)."""
         contours, waiting = outline(spec, max_nodes)
         try:
-            self.tracker.replace(key, contours)
+            put(key, contours)
         except ValueError as exc:
             raise InvalidInputError(f"object {key!r}: {exc}") from None
         self.waiting[key] = waiting

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine import Tracker, deform
-from engine.geometry import circle_nodes, mask_to_contour, resample
+from engine.geometry import box_outline, circle_nodes, mask_to_contour
 from engine.physics import MODAL_METHODS
 from engine.tracking.snap import snap
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
@@ -110,12 +110,7 @@ class Session:
                 raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
             nodes = circle_nodes(c.center, c.radius, c.count)
         elif spec.box is not None:
-            x0, y0, x1, y1 = spec.box  # pixel edges; the outline runs through the edge pixels
-            right, bottom = max(x1 - 1.0, x0), max(y1 - 1.0, y0)
-            corners = np.array([[x0, y0], [right, y0], [right, bottom], [x0, bottom]])
-            if right - x0 < 1e-9 or bottom - y0 < 1e-9:  # a box one pixel thin: its area
-                corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
-            nodes = resample(corners, min(BOX_NODES, max_nodes), closed=True)
+            nodes = box_outline(spec.box, min(BOX_NODES, max_nodes))
         else:
             nodes = np.asarray(spec.nodes, dtype=np.float64)
         need = 3 if spec.closed else 2

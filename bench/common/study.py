@@ -8,19 +8,22 @@ every DAVIS-2016 set there is, on one thread per process, and writes ``<stem>.md
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import sys
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from bench.common import RESULTS
 from bench.common.data import DAVIS_ROOT, DAVIS_TRAIN_ROOT, davis_names
 from bench.common.output import write_results
 
-__all__ = ["davis_sets", "single_threaded", "study_main"]
+__all__ = ["davis_sets", "on_two_processes", "single_threaded", "study_main"]
 
+T = TypeVar("T")
 THREAD_VARIABLES = (
     "OMP_NUM_THREADS",
     "OPENBLAS_NUM_THREADS",
@@ -33,6 +36,14 @@ def single_threaded() -> None:
     """One thread for the numeric libraries of this process and of those it starts."""
     for variable in THREAD_VARIABLES:
         os.environ[variable] = "1"
+
+
+def on_two_processes(work: Callable[[Any], T], jobs: list[Any]) -> list[T]:
+    """``[work(job) for job in jobs]`` on two spawned processes (spawned, not forked: a forked
+    child can inherit a lock some thread of the parent held)."""
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
+        return list(pool.map(work, jobs))
 
 
 def davis_sets() -> dict[str, Path]:

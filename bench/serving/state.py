@@ -19,17 +19,15 @@ the bytes each committed frame adds to Redis (and to its append-only file).
 from __future__ import annotations
 
 import json
-import multiprocessing
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from bench.common.data import davis_names
-from bench.common.study import study_main
+from bench.common.study import on_two_processes, study_main
 
 NODES = 128
 """Contour nodes, as the tracking benchmark's."""
@@ -72,10 +70,7 @@ def run(sets: dict[str, Path], quick: bool) -> dict[str, Any]:
     for label, root in sets.items():
         names = davis_names(root)[: QUICK_SEQUENCES if quick else None]
         jobs += [(label, name, str(root), mode) for name in names for mode in MODES]
-    # spawn, not fork: a forked child can inherit a lock some thread of the parent held
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
-        done = list(pool.map(_track, jobs))
+    done = on_two_processes(_track, jobs)
     out: dict[str, Any] = {}
     for label in sets:
         mine = [d for d in done if d["set"] == label]

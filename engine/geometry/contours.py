@@ -14,6 +14,7 @@ __all__ = [
     "Box",
     "as_nodes",
     "bounding_box",
+    "box_outline",
     "circle_nodes",
     "contour_to_mask",
     "mask_iou",
@@ -60,6 +61,29 @@ def circle_nodes(center: ArrayLike, radius: float, count: int) -> Nodes:
         raise ValueError(f"need radius > 0 and count >= 3; got {radius}, {count}")
     t = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
     return np.stack([cx + radius * np.cos(t), cy - radius * np.sin(t)], axis=1)
+
+
+def box_outline(box: ArrayLike, count: int) -> Nodes:
+    """A closed contour of ``count`` nodes around a box given in pixel edges.
+
+    ``box`` is ``[x0, y0, x1, y1]``, the box of a mask whose pixels span
+    columns ``x0 .. x1 - 1`` and rows ``y0 .. y1 - 1``: the outline runs
+    through its edge pixels' centres, or along its edges for a box one pixel
+    thin (so that it still encloses an area).
+
+    Raises
+    ------
+    ValueError
+        Unless x1 > x0 and y1 > y0, all finite, and ``count`` >= 3.
+    """
+    x0, y0, x1, y1 = (float(v) for v in np.asarray(box, dtype=np.float64).reshape(4))
+    if not (np.isfinite([x0, y0, x1, y1]).all() and x1 > x0 and y1 > y0):
+        raise ValueError("box must be finite [x0, y0, x1, y1] with x1 > x0, y1 > y0")
+    right, bottom = x1 - 1.0, y1 - 1.0
+    if right <= x0 or bottom <= y0:
+        right, bottom = x1, y1
+    corners = np.array([[x0, y0], [right, y0], [right, bottom], [x0, bottom]])
+    return resample(corners, count, closed=True)
 
 
 def resample(nodes: Nodes, count: int, *, closed: bool = True) -> Nodes:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -77,14 +75,12 @@ def test_a_featureless_box_still_gives_a_contour_to_start_from() -> None:
     assert ys.max() < 70
 
 
-def test_a_snap_at_480p_is_well_under_a_second_of_work() -> None:
-    """Correctness of the coarse solve on a large region (timing itself is a benchmark's)."""
+def test_a_large_object_at_480p_is_solved_on_the_shrunk_region() -> None:
+    """The coarse solve is right on a large region (its time is the snap benchmark's)."""
     scene = DiscScene(width=854, height=480, radius=150.0, seed=4)
     truth = scene.mask((420.0, 240.0))
-    start = time.process_time()
     found = snap(scene.frame((420.0, 240.0)), tight_box(truth))
     assert mask_iou(found, truth) > 0.85
-    assert time.process_time() - start < 30  # a bound that only catches a runaway solve
 
 
 @pytest.mark.parametrize(
