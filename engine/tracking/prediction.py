@@ -10,7 +10,8 @@ Two parts:
 2. non-rigid: the object's own dense optical flow at each node beyond the
    similarity (:mod:`engine.tracking.flow`), trusted where it was read on
    object-like pixels and smoothed by the chain as a normalised equilibrium,
-   ``deform(w r) / deform(w)`` (paper eq. 16; docs/math.md, "Flow smoothing").
+   ``deform(w r) / deform(w)`` (paper eq. 16; docs/math.md, "Flow smoothing"),
+   unless the object moves faster than dense flow can follow (:data:`FLOW_REACH`).
 
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
@@ -30,13 +31,21 @@ from engine.tracking.motion import Motion, estimate_motion
 from engine.tracking.stages import Grey, ObjectWeight, Prediction, check_kind
 from engine.tracking.validity import valid_contour
 
-__all__ = ["REDETECT_EVERY", "FlowMotion"]
+__all__ = ["FLOW_REACH", "REDETECT_EVERY", "FlowMotion"]
 
 KIND = "flow-motion"
 REDETECT_EVERY = 10
 """Corners are tracked on from frame to frame and found anew every this many
 frames: new texture comes into view as the object turns, and tracked corners
 slowly drift off theirs."""
+FLOW_REACH = 20.0
+"""Mean displacement of the nodes (pixels per frame, by the similarity) beyond which the
+non-rigid part is left out.  DIS's ultrafast preset reads an object's own motion over a
+still background up to about 20 px: at 24-28 px the flow at a tenth of the nodes already
+falls back towards the background's zero, and at 40 px (a thrown ball, a car passing
+close) most of the outline reads as nearly still, which bent a correctly moved contour
+back into a tail.  Beyond it the similarity alone predicts the contour; the refinement
+and the cut take up the deformation."""
 MIN_WEIGHT = 1e-3
 """Floor of the smoothed weight ``deform(w)`` the flow is divided by: where no
 node's flow was read on the object, the non-rigid part is (almost) zero."""
@@ -73,7 +82,7 @@ class FlowMotion:
         frame_index: int,
         object_weight: ObjectWeight,
     ) -> Prediction:
-        """The contour moved by the similarity, then bent by the smoothed flow.
+        """The contour moved by the similarity, then bent by the smoothed flow (if not fast).
 
         A similarity that makes the contour implausible
         (:func:`~engine.tracking.validity.valid_contour`) is replaced by no
@@ -89,7 +98,8 @@ class FlowMotion:
             predicted, motion = nodes, Motion.identity()
             self._features = None
         rigid = predicted
-        if self.flow_stiffness > 0:
+        fast = float(np.linalg.norm(predicted - nodes, axis=1).mean()) > FLOW_REACH
+        if self.flow_stiffness > 0 and not fast:
             inward = -outward_normals(nodes)
             flow = node_flow(previous, current, nodes, inward)
             residual = (nodes + flow) - predicted
