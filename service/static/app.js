@@ -1,7 +1,9 @@
 /*
  * efdm-tracker demo page: choose a source (video file, camera, or the synthetic
- * scene of ?demo=synthetic), place an initial contour, then stream JPEG frames
- * over the WebSocket of a new session and draw each tracked contour.
+ * scene of ?demo=synthetic), draw an outline around each object (a box, a
+ * circle or a polygon), then stream JPEG frames over the WebSocket of a new
+ * session of several objects and draw each tracked contour in its own colour.
+ * Outlines drawn while tracking are added to the session mid-stream.
  *
  * Coordinates sent to and received from the server are video pixels [x, y]
  * (x = column, y = row) of the source's intrinsic size; the overlay canvas has
@@ -20,6 +22,7 @@
     clear: $("clear"),
     apiKey: $("api-key"),
     snap: $("snap"),
+    objectList: $("object-list"),
     track: $("track"),
     stop: $("stop"),
     stage: $("stage"),
@@ -42,6 +45,13 @@
   const MAX_IN_FLIGHT = clamp(parseInt(params.get("inflight") || "2", 10) || 2, 1, 8);
   const JPEG_QUALITY = 0.8;
   const CIRCLE_NODES = 64;
+  const MAX_OBJECTS = 32; // the server's limit per session
+  const MIN_OUTLINE_PX = 3; // a box narrower, or a circle's radius smaller, is a slip
+  // One colour per object, in the order they were drawn; the first is the page's green.
+  const PALETTE = [
+    "#39ff7a", "#4dc3ff", "#ff5ca8", "#ffb000",
+    "#b388ff", "#00e5d4", "#ff6b6b", "#c6ff00",
+  ];
   // A demo session expires after two idle minutes (the page also deletes it when closed).
   const SESSION_TTL_SECONDS = 120;
   const DRAG_PX = 5; // CSS pixels a press must move to become a circle drag
@@ -55,7 +65,10 @@
     sent: 0, // frames sent on the current stream
     results: 0, // frame results received
     dropped: 0, // sum of the results' "dropped"
-    lastNodes: null, // [[x, y], ...] of the latest result
+    lastNodes: null, // [[x, y], ...] of the latest result (its first object)
+    lastObjects: null, // [{id, nodes | contours, status, confidence}, ...] of the latest result
+    outlines: 0, // outlines drawn, not yet tracked
+    pendingObjects: 0, // objects sent mid-stream, not yet acknowledged
     lastResult: null,
     latencyMs: null,
     lastError: null, // {status, code, message} or a client-side message
@@ -67,7 +80,12 @@
   window.efdmDemo = demo;
 
   let source = null; // {kind, el, width, height, fresh(), taken(), stop(), render?, disc?}
-  let contour = null; // draft: {kind: "polygon", points, closed} | {kind: "circle", center, radius}
+  // An outline: {kind: "polygon", points} | {kind: "circle", center, radius}
+  // | {kind: "box", from, to} (two opposite corners)
+  let outlines = []; // drawn, to be tracked when Track is pressed
+  let draft = null; // being drawn: an open polygon, or the box or circle being dragged
+  let pending = []; // outlines sent to the session mid-stream, not yet acknowledged
+  const colours = new Map(); // object id -> colour
   let press = null; // pointer press on the overlay (click or circle drag)
   let session = null; // {id, key}
   let socket = null;
@@ -110,7 +128,7 @@
     demo.source = next.kind;
     ui.placeholder.hidden = true;
     next.el.hidden = false;
-    contour = null;
+    forgetOutlines();
     demo.lastNodes = null;
     layout();
     updateButtons();
@@ -123,7 +141,7 @@
     source.el.hidden = true;
     source = null;
     demo.source = null;
-    contour = null;
+    forgetOutlines();
     ui.placeholder.hidden = false;
     updateButtons();
   }
@@ -185,7 +203,7 @@
             URL.revokeObjectURL(url);
           }),
         );
-        setStatus(`${file.name}: ${video.videoWidth}×${video.videoHeight}. Place a contour.`);
+        setStatus(`${file.name}: ${video.videoWidth}×${video.videoHeight}. Outline the objects.`);
       },
       { once: true },
     );
@@ -235,7 +253,7 @@
         video.srcObject = null;
       }),
     );
-    setStatus(`Camera: ${video.videoWidth}×${video.videoHeight}. Place a contour.`);
+    setStatus(`Camera: ${video.videoWidth}×${video.videoHeight}. Outline the objects.`);
   }
 
   /**
@@ -323,7 +341,7 @@
     }
   }
 
-  // ----------------------------------------------------------------- contour
+  // ---------------------------------------------------------------- outlines
 
   /** Video pixels per CSS pixel of the overlay. */
   function videoPerCss() {
@@ -339,34 +357,89 @@
     ];
   }
 
+  /** Outlines can be drawn: a picture, and not while a stream is being stopped. */
   function editable() {
-    return Boolean(source && !session);
+    return Boolean(source && !stopping);
   }
 
-  function contourReady() {
-    if (!contour) return false;
-    if (contour.kind === "circle") return contour.radius >= 3;
-    return contour.points.length >= 3;
+  function outlineReady(o) {
+    if (!o) return false;
+    if (o.kind === "circle") return o.radius >= MIN_OUTLINE_PX;
+    if (o.kind === "box") {
+      return (
+        Math.abs(o.to[0] - o.from[0]) >= MIN_OUTLINE_PX &&
+        Math.abs(o.to[1] - o.from[1]) >= MIN_OUTLINE_PX
+      );
+    }
+    return o.points.length >= 3;
+  }
+
+  function dragShape() {
+    const checked = document.querySelector('input[name="drag-shape"]:checked');
+    return checked ? checked.value : "box";
+  }
+
+  function forgetOutlines() {
+    outlines = [];
+    draft = null;
+    pending = [];
+    colours.clear();
+    demo.outlines = 0;
+    demo.pendingObjects = 0;
+  }
+
+  /** Colour of object `id`: the next colour of the palette the first time it is seen. */
+  function colourOf(id) {
+    if (!colours.has(id)) colours.set(id, PALETTE[colours.size % PALETTE.length]);
+    return colours.get(id);
+  }
+
+  /** Colour a not-yet-tracked outline will get. */
+  function nextColour(offset) {
+    return PALETTE[(colours.size + offset) % PALETTE.length];
+  }
+
+  function objectCount() {
+    const tracked = demo.lastObjects ? demo.lastObjects.length : 0;
+    return (session ? tracked : 0) + outlines.length + pending.length;
+  }
+
+  /** A finished outline: kept for Track, or sent to the running session. */
+  function finish(o) {
+    draft = null;
+    if (!outlineReady(o)) return;
+    if (objectCount() >= MAX_OBJECTS) {
+      setStatus(`At most ${MAX_OBJECTS} objects per session.`);
+      return;
+    }
+    if (session) {
+      sendObject(o);
+    } else {
+      outlines.push(o);
+      demo.outlines = outlines.length;
+      setStatus(
+        `${outlines.length} object${outlines.length > 1 ? "s" : ""} outlined. ` +
+          "Draw more, or press Track.",
+      );
+    }
+    updateButtons();
   }
 
   function addPoint(p) {
-    if (!contour || contour.kind !== "polygon" || contour.closed) {
-      contour = { kind: "polygon", points: [], closed: false };
-    }
-    const pts = contour.points;
+    if (!draft || draft.kind !== "polygon") draft = { kind: "polygon", points: [] };
+    const pts = draft.points;
     const near = (q, css) => Math.hypot(q[0] - p[0], q[1] - p[1]) <= css * videoPerCss();
     if (pts.length && near(pts[pts.length - 1], 3)) return; // second click of a double-click
     if (pts.length >= 3 && near(pts[0], 8)) {
-      contour.closed = true; // clicked the first point again
+      finish(draft); // clicked the first point again
       return;
     }
     pts.push(p);
   }
 
   function closePolygon() {
-    if (contour && contour.kind === "polygon" && contour.points.length >= 3) {
-      contour.closed = true;
-      setStatus("Contour closed. Press Track.");
+    if (draft && draft.kind === "polygon" && draft.points.length >= 3) {
+      finish(draft);
     } else {
       setStatus("A polygon needs at least 3 points.");
     }
@@ -377,32 +450,40 @@
     if (!editable() || e.button !== 0) return;
     ui.overlay.setPointerCapture(e.pointerId);
     press = { at: toVideo(e), cx: e.clientX, cy: e.clientY, dragging: false };
-    if (source.kind === "file") source.el.pause(); // edit on a still picture
+    if (source.kind === "file" && !session) source.el.pause(); // edit on a still picture
   });
 
   ui.overlay.addEventListener("pointermove", (e) => {
     if (!press) return;
     if (!press.dragging && Math.hypot(e.clientX - press.cx, e.clientY - press.cy) >= DRAG_PX) {
       press.dragging = true;
-      contour = { kind: "circle", center: press.at, radius: 0 };
-      updateButtons();
+      press.shape = dragShape();
+      press.polygon = draft && draft.kind === "polygon" ? draft : null; // resumed after
     }
     if (press.dragging) {
       const p = toVideo(e);
-      const r = Math.hypot(p[0] - press.at[0], p[1] - press.at[1]);
-      contour = { kind: "circle", center: press.at, radius: r };
+      const radius = Math.hypot(p[0] - press.at[0], p[1] - press.at[1]);
+      draft =
+        press.shape === "circle"
+          ? { kind: "circle", center: press.at, radius }
+          : { kind: "box", from: press.at, to: p };
     }
   });
 
   ui.overlay.addEventListener("pointerup", () => {
     if (!press) return;
     if (!press.dragging) addPoint(press.at);
-    else if (!contourReady()) contour = null;
+    else {
+      const polygon = press.polygon;
+      finish(draft);
+      draft = polygon;
+    }
     press = null;
     updateButtons();
   });
 
   ui.overlay.addEventListener("pointercancel", () => {
+    if (press && press.dragging) draft = press.polygon;
     press = null;
   });
 
@@ -414,19 +495,43 @@
   ui.overlay.addEventListener("keydown", (e) => {
     if (!editable()) return;
     if (e.key === "Enter") closePolygon();
-    else if (e.key === "Escape") clearContour();
-    else if (e.key === "Backspace" && contour && contour.kind === "polygon") {
-      contour.points.pop();
-      contour.closed = false;
-      updateButtons();
+    else if (e.key === "Escape") {
+      if (draft) draft = null;
+      else if (!session) clearOutlines();
+    } else if (e.key === "Backspace") {
+      if (draft && draft.kind === "polygon" && draft.points.length) draft.points.pop();
+      else if (!session && outlines.length) outlines.pop();
+      demo.outlines = outlines.length;
     } else return;
     e.preventDefault();
+    updateButtons();
   });
 
-  function clearContour() {
-    contour = null;
+  function clearOutlines() {
+    outlines = [];
+    draft = null;
+    demo.outlines = 0;
     demo.lastNodes = null;
+    demo.lastObjects = null;
     updateButtons();
+  }
+
+  /** The API's form of an outline ([x, y] video pixels, to 0.1 px). */
+  function objectSpec(o) {
+    const r1 = (v) => Math.round(v * 10) / 10;
+    const snap = ui.snap.checked; // the server snaps the outline on the next frame
+    if (o.kind === "circle") {
+      const circle = { center: o.center.map(r1), radius: r1(o.radius), count: CIRCLE_NODES };
+      return { circle, snap };
+    }
+    if (o.kind === "box") {
+      const x0 = Math.min(o.from[0], o.to[0]);
+      const y0 = Math.min(o.from[1], o.to[1]);
+      const x1 = Math.max(o.from[0], o.to[0]);
+      const y1 = Math.max(o.from[1], o.to[1]);
+      return { box: [x0, y0, x1, y1].map(r1), snap };
+    }
+    return { nodes: o.points.map((p) => p.map(r1)), snap };
   }
 
   // ------------------------------------------------------------------- drawing
@@ -459,29 +564,69 @@
     }
   }
 
+  /** Stroke an outline (dashed: not tracked yet). */
+  function strokeOutline(ctx, o, colour, k, closed = true) {
+    const dash = [6 * k, 4 * k];
+    if (o.kind === "circle") {
+      ctx.beginPath();
+      ctx.arc(o.center[0], o.center[1], o.radius, 0, 2 * Math.PI);
+      haloStroke(ctx, colour, 2 * k, dash);
+      drawDots(ctx, [o.center], colour, 3 * k);
+    } else if (o.kind === "box") {
+      ctx.beginPath();
+      ctx.rect(o.from[0], o.from[1], o.to[0] - o.from[0], o.to[1] - o.from[1]);
+      haloStroke(ctx, colour, 2 * k, dash);
+    } else {
+      tracePath(ctx, o.points, closed);
+      haloStroke(ctx, colour, 2 * k, dash);
+      if (o.points.length <= 32) drawDots(ctx, o.points, colour, 3.5 * k);
+    }
+  }
+
   function drawOverlay() {
     const ctx = overlayCtx;
     ctx.clearRect(0, 0, ui.overlay.width, ui.overlay.height);
     if (!source) return;
     const k = videoPerCss(); // keep line widths constant on screen
     ctx.lineJoin = "round";
-    if (session && demo.lastNodes) {
-      tracePath(ctx, demo.lastNodes, true);
-      haloStroke(ctx, "#39ff7a", 3 * k);
-      return;
-    }
-    if (!contour) return;
-    const dash = [6 * k, 4 * k];
-    if (contour.kind === "circle") {
-      ctx.beginPath();
-      ctx.arc(contour.center[0], contour.center[1], contour.radius, 0, 2 * Math.PI);
-      haloStroke(ctx, "#ffd33d", 2 * k, dash);
-      drawDots(ctx, [contour.center], "#ffd33d", 3 * k);
+    if (session) {
+      const tracked = demo.lastObjects || [];
+      for (const o of tracked) {
+        for (const piece of o.contours || [o.nodes]) {
+          tracePath(ctx, piece, true);
+          haloStroke(ctx, colourOf(o.id), 3 * k);
+        }
+      }
+      pending.forEach((o, i) => strokeOutline(ctx, o, nextColour(i), k));
     } else {
-      tracePath(ctx, contour.points, contour.closed);
-      haloStroke(ctx, "#ffd33d", 2 * k, contour.closed ? [] : dash);
-      if (contour.points.length <= 32) drawDots(ctx, contour.points, "#ffd33d", 3.5 * k);
+      outlines.forEach((o, i) => strokeOutline(ctx, o, nextColour(i), k));
     }
+    if (draft) {
+      const offset = session ? pending.length : outlines.length;
+      strokeOutline(ctx, draft, nextColour(offset), k, draft.kind !== "polygon");
+    }
+  }
+
+  /** The list of objects beside the picture: colour, id, status and confidence. */
+  function paintObjectList() {
+    const rows = session
+      ? (demo.lastObjects || []).map((o) => {
+          const c = typeof o.confidence === "number" ? ` ${o.confidence.toFixed(2)}` : "";
+          return [colourOf(o.id), `#${o.id} ${o.status || "waiting"}${c}`];
+        })
+      : outlines.map((o, i) => [nextColour(i), `${o.kind}, to track`]);
+    pending.forEach((o, i) => rows.push([nextColour(i), `${o.kind}, joining`]));
+    const text = rows.map((r) => r.join(" ")).join("|");
+    if (ui.objectList.dataset.text === text) return;
+    ui.objectList.dataset.text = text;
+    ui.objectList.replaceChildren(
+      ...rows.map(([colour, label]) => {
+        const li = document.createElement("li");
+        li.style.setProperty("--swatch", colour);
+        li.textContent = label;
+        return li;
+      }),
+    );
   }
 
   function paintStats(now) {
@@ -497,6 +642,7 @@
     const r = demo.lastResult;
     ui.confidence.textContent = r ? `${r.confidence.toFixed(2)} ${r.status ?? ""}`.trim() : "–";
     ui.frame.textContent = r ? String(r.frame_index) : "–";
+    paintObjectList();
   }
 
   /** The page's heartbeat: animate, draw, send when a frame is due. */
@@ -529,22 +675,12 @@
   }
 
   async function startTracking() {
-    if (!source || !contourReady() || session) return;
-    if (contour.kind === "polygon") contour.closed = true;
+    if (!source || session) return;
+    if (draft && draft.kind === "polygon" && outlineReady(draft)) finish(draft);
+    if (!outlines.length) return;
     clearError();
-    const r1 = (v) => Math.round(v * 10) / 10;
-    const body =
-      contour.kind === "circle"
-        ? {
-            circle: {
-              center: contour.center.map(r1),
-              radius: r1(contour.radius),
-              count: CIRCLE_NODES,
-            },
-          }
-        : { nodes: contour.points.map((p) => p.map(r1)) };
-    body.ttl_seconds = SESSION_TTL_SECONDS;
-    body.snap = ui.snap.checked; // the server snaps the outline on the first frame
+    // Always a session of several objects, so that more can join mid-stream.
+    const body = { objects: outlines.map(objectSpec), ttl_seconds: SESSION_TTL_SECONDS };
     const key = ui.apiKey.value.trim();
     ui.track.disabled = true;
     setStatus("Creating a session…");
@@ -564,12 +700,17 @@
       return;
     }
     session = { id: created.id, key };
+    colours.clear();
+    (created.objects || []).forEach((o) => colourOf(o.id)); // in the order drawn
+    outlines = [];
     Object.assign(demo, {
       sessionId: created.id,
       sent: 0,
       results: 0,
       dropped: 0,
+      outlines: 0,
       lastNodes: created.nodes,
+      lastObjects: created.objects || null,
       lastResult: null,
       latencyMs: null,
       lastError: null,
@@ -622,6 +763,8 @@
       socket = null;
       demo.tracking = false;
       inflight = [];
+      pending = [];
+      demo.pendingObjects = 0;
       const reason = e.reason ? `: ${e.reason}` : "";
       if (stopping) {
         setStatus(`Stopped (socket closed, code ${e.code}).`);
@@ -653,6 +796,7 @@
       demo.results += 1;
       demo.dropped += msg.dropped;
       demo.lastNodes = msg.nodes;
+      demo.lastObjects = msg.objects || null;
       demo.lastResult = msg;
       resultTimes.push(now);
       if (entry) {
@@ -662,9 +806,18 @@
         demo.lastResultDisc = entry.disc;
         demo.lastResultTime = entry.time;
       }
+    } else if (msg.type === "object") {
+      pending.shift(); // acknowledged: it is tracked from the next frame on
+      demo.pendingObjects = pending.length;
+      colourOf(msg.id);
+      if (demo.lastObjects && !msg.removed) demo.lastObjects = [...demo.lastObjects, msg];
     } else if (msg.type === "error") {
       const err = msg.error || {};
       if (entry) demo.dropped += msg.dropped;
+      else if (pending.length) {
+        pending.shift(); // an object the server refused
+        demo.pendingObjects = pending.length;
+      }
       showError(`Server error ${err.status} ${err.code}: ${err.message}`, err);
     }
     pump();
@@ -705,6 +858,18 @@
     );
   }
 
+  /** Add an outline drawn mid-stream to the session (a WebSocket control message). */
+  function sendObject(o) {
+    const ws = socket;
+    if (!ws || ws.readyState !== WebSocket.OPEN) {
+      setStatus("Not connected yet: draw the object again in a moment.");
+      return;
+    }
+    pending.push(o);
+    demo.pendingObjects = pending.length;
+    ws.send(JSON.stringify({ add_object: objectSpec(o) }));
+  }
+
   /** Wait for `ws` to close, at most `ms` milliseconds. */
   function closed(ws, ms) {
     if (ws.readyState === WebSocket.CLOSED) return Promise.resolve();
@@ -719,7 +884,13 @@
     const s = session;
     if (!s) return;
     session = null;
-    if (demo.lastNodes) contour = { kind: "polygon", points: demo.lastNodes, closed: true };
+    // The last contours become the outlines, to track again.
+    const last = demo.lastObjects || (demo.lastNodes ? [{ nodes: demo.lastNodes }] : []);
+    outlines = last.map((o) => ({ kind: "polygon", points: o.nodes || o.contours[0] }));
+    demo.outlines = outlines.length;
+    pending = [];
+    demo.pendingObjects = 0;
+    colours.clear();
     updateButtons();
     try {
       const res = await fetch(`/v1/sessions/${encodeURIComponent(s.id)}`, {
@@ -760,26 +931,21 @@
     }
     if (source && source.kind === "file") source.el.pause();
     await endSession(false);
-    setStatus(`Stopped. ${demo.results} results; the last contour can be tracked again.`);
+    setStatus(`Stopped. ${demo.results} results; the last contours can be tracked again.`);
   }
 
   // ---------------------------------------------------------------- controls
 
   function updateButtons() {
     const idle = !session;
-    ui.track.disabled = !(idle && source && contourReady());
+    const closable = Boolean(draft && draft.kind === "polygon" && draft.points.length >= 3);
+    ui.track.disabled = !(idle && source && (outlines.length || closable));
     ui.stop.disabled = idle;
-    ui.clear.disabled = !(idle && contour);
-    ui.closePolygon.disabled = !(
-      idle &&
-      contour &&
-      contour.kind === "polygon" &&
-      !contour.closed &&
-      contour.points.length >= 3
-    );
+    ui.clear.disabled = !(idle && (outlines.length || draft));
+    ui.closePolygon.disabled = !(source && closable);
     ui.file.disabled = !idle;
     ui.camera.disabled = !idle;
-    ui.overlay.classList.toggle("editing", Boolean(idle && source));
+    ui.overlay.classList.toggle("editing", Boolean(source));
   }
 
   ui.file.addEventListener("change", () => {
@@ -796,7 +962,7 @@
   });
   ui.camera.addEventListener("click", useCamera);
   ui.closePolygon.addEventListener("click", closePolygon);
-  ui.clear.addEventListener("click", clearContour);
+  ui.clear.addEventListener("click", clearOutlines);
   ui.track.addEventListener("click", startTracking);
   ui.stop.addEventListener("click", stopTracking);
   window.addEventListener("resize", layout);
@@ -813,7 +979,7 @@
 
   if (params.get("demo") === "synthetic") {
     setSource(makeSynthetic());
-    setStatus("Synthetic scene: place a contour around the red disc, then press Track.");
+    setStatus("Synthetic scene: drag a box around the red disc, then press Track.");
   }
   updateButtons();
   requestAnimationFrame(loop);

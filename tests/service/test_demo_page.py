@@ -1,7 +1,8 @@
 """End to end: the demo page at ``/`` in a real Chromium against a real server.
 
-``?demo=synthetic`` (a red disc drawn by the page) is tracked with a dragged
-circle and with a clicked polygon; a WebM file, Chromium's fake camera, a
+``?demo=synthetic`` (a red disc drawn by the page) is tracked from a dragged
+box that snaps onto it, a dragged circle and a clicked polygon, and with other
+objects beside it, one added mid-stream; a WebM file, Chromium's fake camera, a
 missing camera and a server that needs an API key are driven too.  The
 screenshot lands in ``test-artifacts/demo_page.png`` (and ``/tmp``).
 
@@ -32,6 +33,7 @@ from playwright.sync_api import (
     FloatRect,
     Page,
     Playwright,
+    expect,
     sync_playwright,
 )
 
@@ -150,8 +152,26 @@ def css_point(box: FloatRect, scale: float, x: float, y: float) -> tuple[float, 
     return box["x"] + x * scale, box["y"] + y * scale
 
 
+def drag(page: Page, start: tuple[float, float], end: tuple[float, float]) -> None:
+    """Press at ``start``, move to ``end`` in steps, release (page coordinates)."""
+    page.mouse.move(*start)
+    page.mouse.down()
+    page.mouse.move(*end, steps=6)
+    page.mouse.up()
+
+
+def draw_box(
+    page: Page, box: FloatRect, scale: float, corners: tuple[float, float, float, float]
+) -> None:
+    """Drag a box from corner ``[x0, y0]`` to ``[x1, y1]`` (video px), the default shape."""
+    x0, y0, x1, y1 = corners
+    page.get_by_role("radio", name="a box").check()
+    drag(page, css_point(box, scale, x0, y0), css_point(box, scale, x1, y1))
+
+
 def draw_circle(page: Page, disc: dict[str, float], scale: float, box: FloatRect) -> None:
     """Press at the disc's centre and drag out a radius a little larger than the disc."""
+    page.get_by_role("radio", name="a circle").check()
     cx, cy = css_point(box, scale, disc["x"], disc["y"])
     page.mouse.move(cx, cy)
     page.mouse.down()
@@ -280,6 +300,79 @@ def test_demo_page_tracks_a_circle(page: Page, live_server: LiveServer) -> None:
     page.wait_for_function("() => /\\d/.test(document.getElementById('stat-fps').textContent)")
     shutil.copyfile(screenshot(page, "demo_page.png"), "/tmp/demo_page.png")
     stop(page, live_server.url, snapshot["sessionId"])
+
+
+def test_demo_page_snaps_a_dragged_box_onto_the_disc(page: Page, live_server: LiveServer) -> None:
+    disc, scale, box = open_demo(page, live_server.url)
+    margin = 14.0  # a loose box: the snap finds the disc inside it
+    x, y, r = disc["x"], disc["y"], disc["r"]
+    draw_box(page, box, scale, (x - r - margin, y - r - margin, x + r + margin, y + r + 4))
+    assert state(page)["outlines"] == 1
+    page.get_by_role("button", name="Track").click()
+    snapshot = wait_for_tracking(page, disc)
+    check_tracked(page, snapshot)
+    stop(page, live_server.url, snapshot["sessionId"])
+
+
+def overlay_colour_near(page: Page, nodes: list[list[float]], colour: str) -> int:
+    """Overlay pixels of ``colour`` (#rrggbb, +-40 per channel) within 4 px of ``nodes``' points."""
+    count: int = page.evaluate(
+        """([nodes, colour]) => new Promise((resolve) => requestAnimationFrame(() => {
+            const want = [1, 3, 5].map((i) => parseInt(colour.slice(i, i + 2), 16));
+            const c = document.getElementById('overlay');
+            const px = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+            let n = 0;
+            for (const [x, y] of nodes) {
+                for (let dy = -4; dy <= 4; dy++) for (let dx = -4; dx <= 4; dx++) {
+                    const u = Math.round(x) + dx, v = Math.round(y) + dy;
+                    if (u < 0 || v < 0 || u >= c.width || v >= c.height) continue;
+                    const i = 4 * (v * c.width + u);
+                    if (px[i + 3] > 200 && want.every((w, k) => Math.abs(px[i + k] - w) <= 40)) n++;
+                }
+            }
+            resolve(n);
+        }))""",
+        [nodes, colour],
+    )
+    return count
+
+
+def test_demo_page_tracks_several_objects_and_adds_one_mid_stream(
+    page: Page, live_server: LiveServer
+) -> None:
+    """The disc and a patch of background from the start; a third object joins while tracking."""
+    disc, scale, box = open_demo(page, live_server.url)
+    page.get_by_label("Snap onto the object").uncheck()  # the patches have no object to snap to
+    draw_circle(page, disc, scale, box)
+    draw_box(page, box, scale, (20.0, 20.0, 70.0, 60.0))  # clear of the disc's path
+    assert state(page)["outlines"] == 2
+    expect(page.locator("#object-list li")).to_have_count(2)  # repainted 4 times a second
+    page.get_by_role("button", name="Track").click()
+    snapshot = wait_for_tracking(page, disc)
+    objects = snapshot["lastObjects"]
+    assert [o["id"] for o in objects] == ["1", "2"], objects
+    assert snapshot["lastNodes"] == objects[0]["nodes"]
+    check_tracked(page, snapshot)
+    # each in its own colour: the disc green, the second blue
+    assert overlay_colour_near(page, objects[1]["nodes"], "#4dc3ff") > 50
+    draw_box(page, box, scale, (440.0, 250.0, 500.0, 305.0))
+    page.wait_for_function(
+        "() => (window.efdmDemo.lastResult?.objects || []).length === 3"
+        " || window.efdmDemo.lastError"
+    )
+    snapshot = state(page)
+    assert snapshot["lastError"] is None, snapshot["lastError"]
+    assert snapshot["pendingObjects"] == 0
+    third = snapshot["lastObjects"][2]
+    assert third["id"] == "3"
+    xs = [p[0] for p in third["nodes"]]
+    assert min(xs) > 430, third
+    assert max(xs) < 510, third
+    expect(page.locator("#object-list li")).to_have_count(3)
+    assert overlay_colour_near(page, third["nodes"], "#ff5ca8") > 50
+    screenshot(page, "demo_page_objects.png")
+    stop(page, live_server.url, snapshot["sessionId"])
+    assert state(page)["outlines"] == 3  # the last contours, ready to be tracked again
 
 
 def test_demo_page_tracks_a_polygon(page: Page, live_server: LiveServer) -> None:
