@@ -1,7 +1,8 @@
 """A generated scene of several moving objects, some overlapping, with per-object masks.
 
-Each object is a textured ellipse of its own colour moving at constant speed
-(bouncing off the frame's edges) over a textured background; objects are
+Each object is an ellipse of its own colour with a texture that moves with
+it, moving at constant speed (bouncing off the frame's edges) over a
+textured background; objects are
 painted in a fixed depth order (the later in front).  Pairs are launched
 towards each other so that some overlap for a few frames.  Masks are amodal
 (each object's whole silhouette, also where another covers it).
@@ -63,7 +64,7 @@ def make_crowd(
     for hue in hues:
         hsv = np.array([[[hue, 200, 190]]], np.uint8)
         colours.append(cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0].astype(np.float32))
-    skins = [_texture(rng, h, w, 30.0)[..., None] for _ in range(count)]
+    skins = [_texture(rng, h, w, 30.0) for _ in range(count)]
     frames: list[U8] = []
     masks: list[list[U8]] = [[] for _ in range(count)]
     position = start.copy()
@@ -79,7 +80,14 @@ def make_crowd(
             half = (round(axes[k, 0] * 16), round(axes[k, 1] * 16))
             cv2.ellipse(mask, centre, half, 0.0, 0.0, 360.0, 255, -1, cv2.LINE_8, 4)
             masks[k].append(mask)
-            image[mask > 0] = (colours[k] + skins[k])[mask > 0]
+            # the skin moves with the object (a texture fixed in the frame would slide under
+            # it, and a tracker reading the object's own motion would see it stand still)
+            dx, dy = position[k] - start[k]
+            shift = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], np.float32)
+            skin = np.asarray(
+                cv2.warpAffine(skins[k], shift, (w, h), borderMode=cv2.BORDER_REFLECT), np.float32
+            )
+            image[mask > 0] = (colours[k] + skin[..., None])[mask > 0]
         frames.append(np.asarray(np.clip(image, 0, 255), np.uint8))
         position += velocity
         out = (position < lo + axes) | (position > hi - axes)  # bounce off the cell's walls
