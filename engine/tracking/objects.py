@@ -124,13 +124,14 @@ class ObjectsTracker:
         """Track every object into the next frame, in the order they were added."""
         from engine.tracking._frames import as_frame
 
-        as_frame(frame)  # one check of the frame, a clear error before any object moves
+        # checked once, a clear error before any object moves; converted to grey once
+        image, grey = as_frame(frame)
         items = list(self.trackers.items())
         if self.workers > 1 and len(items) > 1:
             with ThreadPoolExecutor(min(self.workers, len(items))) as pool:
-                results = list(pool.map(lambda kv: kv[1].step(frame), items))
+                results = list(pool.map(lambda kv: kv[1].step_prepared(image, grey), items))
         else:
-            results = [t.step(frame) for _, t in items]
+            results = [t.step_prepared(image, grey) for _, t in items]
         out = []
         for (key, _), r in zip(items, results, strict=True):
             contours = list(r.contours) if hasattr(r, "contours") else [r.nodes]

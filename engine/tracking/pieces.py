@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from engine.geometry import polygon_area
+from engine.tracking._frames import as_frame
 from engine.tracking.confidence import Status, status_of
 from engine.tracking.result import TrackResult
 from engine.tracking.tracker import Tracker
@@ -94,7 +95,11 @@ class PiecesTracker:
 
     def step(self, frame: NDArray[np.uint8]) -> PiecesResult:
         """Track every piece into the next frame (see :meth:`Tracker.step`)."""
-        pieces = [t.step(frame) for t in self.trackers]
+        return self.step_prepared(*as_frame(frame))
+
+    def step_prepared(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> PiecesResult:
+        """:meth:`step` on a frame checked and converted once (:meth:`Tracker.step_prepared`)."""
+        pieces = [t.step_prepared(image, grey) for t in self.trackers]
         weights = np.array([abs(polygon_area(p.nodes)) for p in pieces]) + 1.0
         confidence = float(np.dot(weights, [p.confidence for p in pieces]) / weights.sum())
         return PiecesResult([p.nodes for p in pieces], confidence, status_of(confidence), pieces)

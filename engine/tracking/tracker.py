@@ -245,11 +245,18 @@ class Tracker:
         ValueError
             If the frame is not a non-empty uint8 image.
         """
-        with _repeatable_opencv():
-            return self._step(frame)
+        return self.step_prepared(*_as_frame(frame))
 
-    def _step(self, frame: NDArray[np.uint8]) -> TrackResult:
-        image, grey = _as_frame(frame)
+    def step_prepared(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
+        """:meth:`step` on a frame already checked and converted (shared by several trackers).
+
+        ``image, grey`` as :func:`engine.tracking._frames.as_frame` returns them: the
+        contiguous BGR (or grey) image and its grey version.
+        """
+        with _repeatable_opencv():
+            return self._step(image, grey)
+
+    def _step(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
         self.frame_index += 1
         if min(grey.shape) < MIN_SIDE:
             return self._result(0, False, 0.0)

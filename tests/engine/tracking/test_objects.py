@@ -7,7 +7,7 @@ import pytest
 
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
 from engine.testing.crowd import make_crowd
-from engine.tracking import ObjectResult, ObjectsTracker, label_mask
+from engine.tracking import ObjectResult, ObjectsTracker, Tracker, label_mask
 
 CROWD = make_crowd(seed=0, length=20)
 COUNT = len(CROWD.masks)
@@ -122,3 +122,29 @@ def test_an_objects_state_resumes_exactly() -> None:
 def test_malformed_objects_states_are_refused(state: dict[str, object]) -> None:
     with pytest.raises(ValueError, match="object"):
         ObjectsTracker.from_state(state)
+
+
+def test_the_frame_is_checked_and_converted_once_and_each_object_tracks_as_alone(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import engine.tracking._frames as frames
+    import engine.tracking.tracker as tracker_module
+
+    starts = {k: mask_to_contour(CROWD.masks[k][0], 64) for k in (0, 3)}
+    alone = {k: Tracker(nodes) for k, nodes in starts.items()}
+    together = ObjectsTracker(starts)
+    calls = []
+    convert = frames.as_frame
+
+    def counted(frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        calls.append(1)
+        return convert(frame)
+
+    monkeypatch.setattr(frames, "as_frame", counted)
+    monkeypatch.setattr(tracker_module, "_as_frame", counted)  # a Tracker's own step
+    for frame in CROWD.frames[:6]:
+        calls.clear()
+        results = together.step(frame)
+        assert len(calls) == 1  # not once per object
+        for k, r in zip(starts, results, strict=True):
+            np.testing.assert_array_equal(r.contours[0], alone[k].step(frame).nodes)
