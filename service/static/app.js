@@ -85,6 +85,9 @@
   let outlines = []; // drawn, to be tracked when Track is pressed
   let draft = null; // being drawn: an open polygon, or the box or circle being dragged
   let pending = []; // outlines sent to the session mid-stream, not yet acknowledged
+  // Control messages sent, in order, awaiting their answer: "add" (its outline is in
+  // `pending`) or "remove"; the server answers them in the order they were sent.
+  let controls = [];
   const colours = new Map(); // object id -> colour
   let press = null; // pointer press on the overlay (click or circle drag)
   let session = null; // {id, key}
@@ -383,6 +386,7 @@
     outlines = [];
     draft = null;
     pending = [];
+    controls = [];
     colours.clear();
     demo.outlines = 0;
     demo.pendingObjects = 0;
@@ -609,21 +613,41 @@
 
   /** The list of objects beside the picture: colour, id, status and confidence. */
   function paintObjectList() {
+    // [colour, label, key to remove it by (an object's id, an outline's index) or null]
     const rows = session
       ? (demo.lastObjects || []).map((o) => {
           const c = typeof o.confidence === "number" ? ` ${o.confidence.toFixed(2)}` : "";
-          return [colourOf(o.id), `#${o.id} ${o.status || "waiting"}${c}`];
+          return [colourOf(o.id), `#${o.id} ${o.status || "waiting"}${c}`, o.id];
         })
-      : outlines.map((o, i) => [nextColour(i), `${o.kind}, to track`]);
-    pending.forEach((o, i) => rows.push([nextColour(i), `${o.kind}, joining`]));
-    const text = rows.map((r) => r.join(" ")).join("|");
-    if (ui.objectList.dataset.text === text) return;
-    ui.objectList.dataset.text = text;
+      : outlines.map((o, i) => [nextColour(i), `${o.kind}, to track`, String(i)]);
+    pending.forEach((o, i) => rows.push([nextColour(i), `${o.kind}, joining`, null]));
+    // Rebuilt only when the objects change (a button replaced under the pointer would
+    // lose its click); otherwise only the labels are updated in place.
+    const structure = rows.map((r) => `${r[0]} ${r[2]}`).join("|");
+    if (ui.objectList.dataset.structure === structure) {
+      rows.forEach(([, label], i) => {
+        const li = ui.objectList.children[i];
+        if (li && li.firstChild.nodeValue !== label) li.firstChild.nodeValue = label;
+      });
+      return;
+    }
+    ui.objectList.dataset.structure = structure;
     ui.objectList.replaceChildren(
-      ...rows.map(([colour, label]) => {
+      ...rows.map(([colour, label, key]) => {
         const li = document.createElement("li");
         li.style.setProperty("--swatch", colour);
-        li.textContent = label;
+        li.append(label);
+        if (key !== null) {
+          const remove = document.createElement("button");
+          remove.type = "button";
+          remove.className = "remove";
+          remove.dataset.key = key;
+          remove.textContent = "×";
+          remove.title = "Remove";
+          const what = session ? `object #${key}` : `outline ${Number(key) + 1}`;
+          remove.setAttribute("aria-label", `Remove ${what}`);
+          li.append(" ", remove);
+        }
         return li;
       }),
     );
@@ -764,6 +788,7 @@
       demo.tracking = false;
       inflight = [];
       pending = [];
+      controls = [];
       demo.pendingObjects = 0;
       const reason = e.reason ? `: ${e.reason}` : "";
       if (stopping) {
@@ -807,17 +832,20 @@
         demo.lastResultTime = entry.time;
       }
     } else if (msg.type === "object") {
-      pending.shift(); // acknowledged: it is tracked from the next frame on
+      // acknowledged: it takes effect from the next frame on
+      if (controls.shift() === "add") pending.shift();
       demo.pendingObjects = pending.length;
-      colourOf(msg.id);
-      if (demo.lastObjects && !msg.removed) demo.lastObjects = [...demo.lastObjects, msg];
+      const others = (demo.lastObjects || []).filter((o) => o.id !== msg.id);
+      if (msg.removed) demo.lastObjects = others;
+      else {
+        colourOf(msg.id);
+        demo.lastObjects = [...others, msg];
+      }
     } else if (msg.type === "error") {
       const err = msg.error || {};
       if (entry) demo.dropped += msg.dropped;
-      else if (pending.length) {
-        pending.shift(); // an object the server refused
-        demo.pendingObjects = pending.length;
-      }
+      else if (controls.length && controls.shift() === "add") pending.shift(); // refused
+      demo.pendingObjects = pending.length;
       showError(`Server error ${err.status} ${err.code}: ${err.message}`, err);
     }
     pump();
@@ -866,8 +894,23 @@
       return;
     }
     pending.push(o);
+    controls.push("add");
     demo.pendingObjects = pending.length;
     ws.send(JSON.stringify({ add_object: objectSpec(o) }));
+  }
+
+  /** Stop tracking object `id` (mid-stream), or forget outline `index` (before tracking). */
+  function removeObject(key) {
+    if (!session) {
+      outlines.splice(Number(key), 1);
+      demo.outlines = outlines.length;
+      updateButtons();
+      return;
+    }
+    const ws = socket;
+    if (!ws || ws.readyState !== WebSocket.OPEN) return;
+    controls.push("remove");
+    ws.send(JSON.stringify({ remove_object: key }));
   }
 
   /** Wait for `ws` to close, at most `ms` milliseconds. */
@@ -889,6 +932,7 @@
     outlines = last.map((o) => ({ kind: "polygon", points: o.nodes || o.contours[0] }));
     demo.outlines = outlines.length;
     pending = [];
+    controls = [];
     demo.pendingObjects = 0;
     colours.clear();
     updateButtons();
@@ -963,6 +1007,10 @@
   ui.camera.addEventListener("click", useCamera);
   ui.closePolygon.addEventListener("click", closePolygon);
   ui.clear.addEventListener("click", clearOutlines);
+  ui.objectList.addEventListener("click", (e) => {
+    const button = e.target.closest("button.remove");
+    if (button && !stopping) removeObject(button.dataset.key);
+  });
   ui.track.addEventListener("click", startTracking);
   ui.stop.addEventListener("click", stopTracking);
   window.addEventListener("resize", layout);

@@ -340,13 +340,18 @@ def overlay_colour_near(page: Page, nodes: list[list[float]], colour: str) -> in
 def test_demo_page_tracks_several_objects_and_adds_one_mid_stream(
     page: Page, live_server: LiveServer
 ) -> None:
-    """The disc and a patch of background from the start; a third object joins while tracking."""
+    """The disc and a patch of background from the start (a third outline drawn and removed
+    again); a third object joins while tracking, and the second is removed."""
     disc, scale, box = open_demo(page, live_server.url)
     page.get_by_label("Snap onto the object").uncheck()  # the patches have no object to snap to
     draw_circle(page, disc, scale, box)
     draw_box(page, box, scale, (20.0, 20.0, 70.0, 60.0))  # clear of the disc's path
+    draw_box(page, box, scale, (20.0, 250.0, 70.0, 300.0))
+    assert state(page)["outlines"] == 3
+    expect(page.locator("#object-list li")).to_have_count(3)  # repainted 4 times a second
+    page.get_by_role("button", name="Remove outline 3").click()  # a slip: gone
     assert state(page)["outlines"] == 2
-    expect(page.locator("#object-list li")).to_have_count(2)  # repainted 4 times a second
+    expect(page.locator("#object-list li")).to_have_count(2)
     page.get_by_role("button", name="Track").click()
     snapshot = wait_for_tracking(page, disc)
     objects = snapshot["lastObjects"]
@@ -371,8 +376,16 @@ def test_demo_page_tracks_several_objects_and_adds_one_mid_stream(
     expect(page.locator("#object-list li")).to_have_count(3)
     assert overlay_colour_near(page, third["nodes"], "#ff5ca8") > 50
     screenshot(page, "demo_page_objects.png")
+    page.get_by_role("button", name="Remove object #2").click()  # mid-stream
+    page.wait_for_function(
+        "() => (window.efdmDemo.lastResult?.objects || []).map((o) => o.id).join() === '1,3'"
+        " || window.efdmDemo.lastError"
+    )
+    snapshot = state(page)
+    assert snapshot["lastError"] is None, snapshot["lastError"]
+    expect(page.locator("#object-list li")).to_have_count(2)
     stop(page, live_server.url, snapshot["sessionId"])
-    assert state(page)["outlines"] == 3  # the last contours, ready to be tracked again
+    assert state(page)["outlines"] == 2  # the last contours, ready to be tracked again
 
 
 def test_demo_page_tracks_a_polygon(page: Page, live_server: LiveServer) -> None:
