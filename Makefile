@@ -66,5 +66,9 @@ bench-studies: $(STAMP)
 bench-load: $(STAMP)
 	$(BIN)/python -m bench.load
 
+## clean: the virtual environment, tool caches and __pycache__ (numba's compiled kernels live
+## there, and a kernel compiled into a caller is not recompiled when only its callee's file
+## changes)
 clean:
 	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
