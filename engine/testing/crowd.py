@@ -2,12 +2,11 @@
 
 Each object is an ellipse of its own colour with a texture that moves with
 it, moving at constant speed (bouncing off the frame's edges) over a
-textured background; objects are
-painted in a fixed depth order (the later in front).  Pairs are launched
-towards each other so that some overlap for a few frames.  Masks are amodal
-(each object's whole silhouette, also where another covers it).
-Coordinates are ``[x, y]`` pixels; frames H x W x 3 BGR ``uint8``; masks
-H x W ``uint8``, 0 or 255.  Deterministic for a given seed.
+textured background; objects are painted in a fixed depth order (the later
+in front).  Pairs are launched towards each other so that some overlap for a
+few frames.  Masks are amodal (each object's whole silhouette, also where
+another covers it).  Coordinates are ``[x, y]`` pixels; frames H x W x 3 BGR
+``uint8``; masks H x W ``uint8``, 0 or 255.  Deterministic for a given seed.
 """
 
 from __future__ import annotations
