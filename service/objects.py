@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import base64
 import binascii
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import cv2
@@ -23,9 +23,9 @@ from engine.geometry import box_outline, circle_nodes, contour_to_mask, mask_to_
 from engine.tracking import ObjectsTracker
 from engine.tracking.snap import snap
 from service.domain_errors import InvalidInputError, ObjectNotFoundError
-from service.schemas import BOX_NODES, MAX_OBJECTS, ObjectSpec
+from service.schemas import BOX_NODES, MAX_OBJECTS, Circle, ObjectSpec
 
-__all__ = ["SessionObjects"]
+__all__ = ["SessionObjects", "first_contour", "outline_nodes"]
 
 MASK_NODES = 128
 """Nodes of an object given as a mask, shared by its pieces."""
@@ -49,18 +49,33 @@ def _mask(text: str) -> NDArray[np.uint8]:
     return np.asarray(image, np.uint8)
 
 
+def outline_nodes(
+    circle: Circle | None, box: Sequence[float] | None, nodes: Any, max_nodes: int
+) -> NDArray[np.float64]:
+    """The contour of a circle, else a box (:data:`BOX_NODES` nodes), else a node list:
+    the forms a session and an object are given in (the node count is the caller's to check).
+
+    Raises InvalidInputError for a circle of more than ``max_nodes`` nodes.
+    """
+    if circle is not None:
+        if circle.count > max_nodes:
+            raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
+        return circle_nodes(circle.center, circle.radius, circle.count)
+    if box is not None:
+        return box_outline(box, min(BOX_NODES, max_nodes))
+    return np.asarray(nodes, dtype=np.float64)
+
+
+def first_contour(shape: dict[str, Any]) -> NDArray[np.float64]:
+    """The contour of an object as the API shows it (:func:`_shape`), or its first piece's."""
+    return np.asarray(shape.get("nodes") or shape["contours"][0], dtype=np.float64)
+
+
 def outline(spec: ObjectSpec, max_nodes: int) -> tuple[Contours, dict[str, Any]]:
     """An object's contours and what waits for the next frame (``snap`` or ``size``)."""
-    if spec.circle is not None:
-        c = spec.circle
-        if c.count > max_nodes:
-            raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
-        contours = [circle_nodes(c.center, c.radius, c.count)]
-    elif spec.box is not None:
-        contours = [box_outline(spec.box, min(BOX_NODES, max_nodes))]
-    elif spec.nodes is not None:
-        contours = [np.asarray(spec.nodes, dtype=np.float64)]
-        if not 3 <= len(contours[0]) <= max_nodes:
+    if spec.mask is None:
+        contours = [outline_nodes(spec.circle, spec.box, spec.nodes, max_nodes)]
+        if spec.nodes is not None and not 3 <= len(contours[0]) <= max_nodes:
             raise InvalidInputError(f"nodes: need 3 to {max_nodes}; got {len(contours[0])}")
     else:
         mask = _mask(str(spec.mask))
@@ -170,8 +185,7 @@ class SessionObjects:
 
     def contours(self, key: str) -> Contours:
         """An object's current contours."""
-        tracker = self.tracker.trackers[key]
-        return list(tracker.contours) if hasattr(tracker, "contours") else [tracker.nodes]
+        return self.tracker.contours(key)
 
     def step(self, frame: NDArray[np.uint8]) -> list[dict[str, Any]]:
         """Track every object into ``frame`` (waiting ones settled first); their results."""
@@ -209,5 +223,5 @@ class SessionObjects:
 
 
 def _shape(contours: Contours) -> dict[str, Any]:
-    rounded = [np.asarray(c, np.float64).tolist() for c in contours]
-    return {"nodes": rounded[0]} if len(rounded) == 1 else {"contours": rounded}
+    points = [np.asarray(c, np.float64).tolist() for c in contours]
+    return {"nodes": points[0]} if len(points) == 1 else {"contours": points}

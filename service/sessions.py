@@ -16,12 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine import Tracker, deform
-from engine.geometry import box_outline, circle_nodes, mask_to_contour
+from engine.geometry import mask_to_contour
 from engine.physics import MODAL_METHODS
 from engine.tracking.snap import snap
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
-from service.objects import SessionObjects
-from service.schemas import BOX_NODES, LIMIT, SessionCreate
+from service.objects import SessionObjects, first_contour, outline_nodes
+from service.schemas import LIMIT, SessionCreate
 from service.units import TIMES
 
 NEAR_LIMIT = 1e6
@@ -90,8 +90,7 @@ class Session:
         """
         if spec.objects is not None:
             objects = SessionObjects.create(spec.objects, dict(spec.tracking), max_nodes)
-            first = objects.describe()[0]
-            nodes = np.asarray(first.get("nodes") or first["contours"][0], dtype=np.float64)
+            nodes = first_contour(objects.describe()[0])
             return cls(
                 id=new_id(),
                 owner=owner,
@@ -104,15 +103,7 @@ class Session:
                 ttl=spec.ttl_seconds,
                 objects=objects,
             )
-        if spec.circle is not None:
-            c = spec.circle
-            if c.count > max_nodes:
-                raise InvalidInputError(f"circle.count exceeds the limit of {max_nodes}")
-            nodes = circle_nodes(c.center, c.radius, c.count)
-        elif spec.box is not None:
-            nodes = box_outline(spec.box, min(BOX_NODES, max_nodes))
-        else:
-            nodes = np.asarray(spec.nodes, dtype=np.float64)
+        nodes = outline_nodes(spec.circle, spec.box, spec.nodes, max_nodes)
         need = 3 if spec.closed else 2
         if spec.method in MODAL_METHODS:  # O(N^3) references: bounded CPU per request
             max_nodes = min(max_nodes, MODAL_MAX_NODES)
@@ -260,8 +251,7 @@ class Session:
         self.frame_index += 1
         self.version += 1
         first = found[0] if found else None
-        nodes = self.nodes if first is None else first.get("nodes") or first["contours"][0]
-        self.nodes = np.asarray(nodes, dtype=np.float64)
+        self.nodes = self.nodes if first is None else first_contour(first)
         self.rest = self.nodes.copy()
         order = ("lost", "uncertain", "tracking")
         return {

@@ -120,6 +120,11 @@ class ObjectsTracker:
         """Stop following an object (KeyError if unknown)."""
         del self.trackers[key]
 
+    def contours(self, key: Hashable) -> list[NDArray[np.float64]]:
+        """Object ``key``'s current contour, or one per piece (KeyError if unknown)."""
+        tracker = self.trackers[key]
+        return tracker.contours if isinstance(tracker, PiecesTracker) else [tracker.nodes]
+
     def step(self, frame: NDArray[np.uint8]) -> list[ObjectResult]:
         """Track every object into the next frame, in the order they were added."""
         from engine.tracking._frames import as_frame

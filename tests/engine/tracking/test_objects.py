@@ -76,6 +76,11 @@ def test_an_object_in_pieces_gives_its_contours() -> None:
     tracker = ObjectsTracker({"kite": pieces, "surfer": circle_nodes((300, 300), 25, 40)})
     first = tracker.step(CROWD.frames[0])
     assert [len(r.contours) for r in first] == [2, 1]
+    for r in first:  # what the tracker holds is what it answered
+        for held, answered in zip(tracker.contours(r.id), r.contours, strict=True):
+            np.testing.assert_array_equal(held, answered)
+    with pytest.raises(KeyError):
+        tracker.contours("nobody")
 
 
 def test_bad_frames_move_no_object() -> None:
