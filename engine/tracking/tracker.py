@@ -252,7 +252,25 @@ class Tracker:
 
         ``image, grey`` as :func:`engine.tracking._frames.as_frame` returns them: the
         contiguous BGR (or grey) image and its grey version.
+
+        Raises
+        ------
+        ValueError
+            If they are not uint8, ``grey`` is not H x W, or ``image`` is not that
+            H x W (x 3).
         """
+        if (
+            image.dtype != np.uint8
+            or grey.dtype != np.uint8
+            or grey.ndim != 2
+            or image.shape[:2] != grey.shape
+            or image.ndim not in (2, 3)
+            or (image.ndim == 3 and image.shape[2] != 3)
+        ):
+            raise ValueError(
+                "step_prepared takes a uint8 H x W (x 3) image and its H x W grey version; "
+                f"got {image.dtype} {image.shape} and {grey.dtype} {grey.shape}"
+            )
         with _repeatable_opencv():
             return self._step(image, grey)
 

@@ -153,3 +153,19 @@ def test_the_frame_is_checked_and_converted_once_and_each_object_tracks_as_alone
         assert len(calls) == 1  # not once per object
         for k, r in zip(starts, results, strict=True):
             np.testing.assert_array_equal(r.contours[0], alone[k].step(frame).nodes)
+
+
+@pytest.mark.parametrize(
+    ("image", "grey"),
+    [
+        (np.zeros((40, 60, 3), np.uint8), np.zeros((40, 61), np.uint8)),  # sizes differ
+        (np.zeros((40, 60, 3), np.float32), np.zeros((40, 60), np.uint8)),  # not uint8
+        (np.zeros((40, 60, 4), np.uint8), np.zeros((40, 60), np.uint8)),  # BGRA, unconverted
+        (np.zeros((40, 60, 3), np.uint8), np.zeros((40, 60, 3), np.uint8)),  # grey not H x W
+    ],
+)
+def test_a_prepared_frame_that_is_not_one_is_refused(image: np.ndarray, grey: np.ndarray) -> None:
+    tracker = Tracker(circle_nodes((30, 20), 10, 16))
+    with pytest.raises(ValueError, match="step_prepared"):
+        tracker.step_prepared(image, grey)
+    assert tracker.frame_index == -1  # nothing moved
