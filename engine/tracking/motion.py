@@ -71,6 +71,14 @@ half-resolution guess has lost the texture; the guess is kept."""
 RANSAC_ITERATIONS = 500
 """RANSAC draws for the similarity: finds a fit with half the points inliers
 with certainty far beyond 0.999."""
+BACKGROUND_TOLERANCE = 1.0
+"""A point that ends within 1 pixel (the forward-backward check's accuracy) of where the
+background's motion takes it moved with the background."""
+OBJECT_SHARE = 0.3
+"""Points moving with the background are left out of the object's fit only when at least
+this share of the tracked points (and :data:`MIN_POINTS`) move otherwise: fewer, and the
+object moves with the background (a still object under a still camera, a passenger
+carried along with it), so every point is the object's."""
 MEDIAN_SUPPORT = 0.5
 """When RANSAC finds no similarity, the median shift is used, with half the
 support the surviving points would give."""
@@ -211,6 +219,7 @@ def estimate_motion(
     fb_threshold: float = FB_THRESHOLD,
     ransac_threshold: float = RANSAC_THRESHOLD,
     features: NDArray[np.float32] | None = None,
+    background: NDArray[np.float64] | None = None,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
 
@@ -219,7 +228,11 @@ def estimate_motion(
     Lucas-Kanade tracks them at half resolution, forward and back (points
     whose round trip misses by more than ``fb_threshold`` are dropped); one
     more Lucas-Kanade level at full resolution refines the survivors, and
-    RANSAC fits the similarity.
+    RANSAC fits the similarity.  Given the ``background``'s motion, points
+    that moved with it are left out first when enough others did not
+    (:data:`BACKGROUND_TOLERANCE`, :data:`OBJECT_SHARE`): a contour that took
+    in some background (a textured wall the object passes) is still moved by
+    the object, not held by the wall.
 
     Parameters
     ----------
@@ -242,6 +255,9 @@ def estimate_motion(
         (K, 2) ``[x, y]`` corners in ``previous`` to track instead of
         detecting new ones (the previous call's :attr:`Motion.tracked`);
         ignored when fewer than ``max_features // 4`` (at least 3).
+    background : numpy.ndarray, optional
+        2 x 3 similarity of the background from ``previous`` to ``current``
+        (:func:`engine.tracking.background.background_motion`).
 
     Returns
     -------
@@ -317,6 +333,12 @@ def estimate_motion(
     # a refinement that runs off (lost texture at full resolution) keeps the guess
     ok_fine &= np.linalg.norm(dst - guess, axis=1) < RUN_OFF
     dst = np.where(ok_fine[:, None], dst, guess)
+    origin = np.asarray(frames.origin, dtype=np.float64)
+    corner_good = is_corner[good]
+    if background is not None:
+        moving = _not_with(background, src, dst, origin)
+        if moving is not None:
+            src, dst, corner_good = src[moving], dst[moving], corner_good[moving]
     matrix, inliers = cv2.estimateAffinePartial2D(
         src,
         dst,
@@ -324,17 +346,33 @@ def estimate_motion(
         ransacReprojThreshold=ransac_threshold,
         maxIters=RANSAC_ITERATIONS,
     )
-    origin = np.asarray(frames.origin, dtype=np.float64)
     if matrix is None or not np.isfinite(matrix).all():
         shift = np.median(dst - src, axis=0)
         matrix = np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]]])
         support = float(good.mean()) * MEDIAN_SUPPORT
         tracked = np.zeros((0, 2), np.float32)
     else:
-        support = float(inliers.sum()) / len(pts)
-        agreed = (np.asarray(inliers).ravel() != 0) & is_corner[good]
+        # the share of the object's points (those not moving with the background) that agree
+        support = float(inliers.sum()) / (len(pts) - (int(good.sum()) - len(src)))
+        agreed = (np.asarray(inliers).ravel() != 0) & corner_good
         tracked = (dst[agreed] + origin).astype(np.float32)
     fitted: NDArray[np.float64] = np.asarray(matrix, dtype=np.float64)
     # back to frame coordinates: T(o) M T(-o)
     fitted[:, 2] += origin - fitted[:, :2] @ origin
     return Motion(fitted, support, len(pts), tracked)
+
+
+def _not_with(
+    background: NDArray[np.float64],
+    src: NDArray[np.float32],
+    dst: NDArray[np.float32],
+    origin: NDArray[np.float64],
+) -> NDArray[np.bool_] | None:
+    """Which tracked points (crop coordinates) did not move with the background, or None to
+    keep them all (none moved with it, or too few moved otherwise)."""
+    at = src.astype(np.float64) + origin
+    expected = at @ background[:, :2].T + background[:, 2] - origin
+    moving = np.linalg.norm(dst - expected, axis=1) >= BACKGROUND_TOLERANCE
+    if moving.all() or moving.sum() < max(MIN_POINTS, OBJECT_SHARE * len(src)):
+        return None
+    return np.asarray(moving)

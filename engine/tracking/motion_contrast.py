@@ -5,7 +5,8 @@ leading classic segmenters (ObjectFlow, BVS) also ask how each pixel moved.
 Here the question is asked cheaply, by two warps of the previous frame:
 
 1. the background's motion is a similarity fitted (RANSAC) to corners
-   tracked (pyramidal Lucas-Kanade) in a ring outside the previous contour;
+   tracked (pyramidal Lucas-Kanade) outside the previous contour
+   (:func:`engine.tracking.background.background_motion`);
 2. the object's is the motion model's similarity
    (:attr:`engine.tracking.stages.Prediction.matrix`);
 3. each pixel of the current region is compared with the previous frame
@@ -34,7 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
+from engine.tracking.background import background_motion
 
 __all__ = ["GAIN", "motion_ratio", "with_motion"]
 
@@ -47,30 +48,6 @@ NOISE = 12.0
 """Grey levels added to the residuals' sum: where both warps match to within
 camera noise and JPEG loss, the cue stays near 0 (compared on the thirty
 training sequences with 6 and 20)."""
-RING = 6
-"""Background corners are sought beyond this many pixels of the previous
-contour: past the boundary's mixed pixels and the contour's own error."""
-MAX_CORNERS = 80
-"""Background corners per frame: plenty for RANSAC, well under a millisecond."""
-CORNER_QUALITY = 0.01
-"""Corners down to 1 % of the strongest one's response (weakly textured
-backgrounds still give some)."""
-CORNER_SPACING = 3
-"""Least distance (half-resolution pixels) between two corners."""
-WINDOW = 9
-"""Lucas-Kanade window side (pixels): 9 x 9 locks on background texture at a
-quarter of the cost of 15 x 15, with no loss on the training sequences."""
-LEVELS = 3
-"""Pyramid levels: with :data:`WINDOW` they follow about 36 pixels of motion."""
-RANSAC_THRESHOLD = 2.0
-"""RANSAC inlier threshold (pixels): parallax and a wrongly tracked corner
-miss the background's similarity by more."""
-RANSAC_ITERATIONS = 200
-"""RANSAC draws: a similarity has two points, so with half the corners
-inliers 200 draws miss a clean pair with probability 0.75^200, about 1e-25."""
-MIN_POINTS = 8
-"""Fewest inlier corners for a background motion: fewer, and the background
-is too flat to say how it moved (the cue is then off)."""
 MIN_SEPARATION = 1.0
 """The two motions must move some corner of the region 1 pixel apart; closer,
 a pixel's residuals cannot tell them apart."""
@@ -79,44 +56,6 @@ AVERAGE = 5
 difference is noise, a 5 x 5 patch's is texture."""
 MIN_SIDE = 16
 """Regions narrower or lower than this hold too little background to fit."""
-
-
-def _background_motion(
-    previous: NDArray[np.uint8], current: NDArray[np.uint8], nodes: NDArray[np.float64]
-) -> NDArray[np.float64] | None:
-    """2 x 3 similarity of the background, in region pixels, or None if not measurable."""
-    h, w = previous.shape
-    # corners are sought at half resolution (even sides: OpenCV's exact halving)
-    half = np.asarray(
-        cv2.resize(
-            previous[: h - h % 2, : w - w % 2], (w // 2, h // 2), interpolation=cv2.INTER_AREA
-        )
-    )
-    near = np.ones((RING + 1, RING + 1), np.uint8)  # RING region pixels each way
-    inside = contour_to_mask((nodes - 0.5) / 2, half.shape)  # region p is half (p - 1/2) / 2
-    mask = np.asarray(cv2.dilate(inside, near) == 0, np.uint8)
-    corners = cv2.goodFeaturesToTrack(
-        half, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=mask, blockSize=3
-    )
-    if corners is None or len(corners) < MIN_POINTS:
-        return None
-    start = np.asarray(corners * 2 + 0.5, np.float32)  # half pixel u is frame pixel 2u + 1/2
-    end, found, _ = cv2.calcOpticalFlowPyrLK(
-        previous, current, start, start.copy(), winSize=(WINDOW, WINDOW), maxLevel=LEVELS
-    )
-    kept = found.ravel() == 1
-    if np.count_nonzero(kept) < MIN_POINTS:
-        return None
-    matrix, inliers = cv2.estimateAffinePartial2D(
-        start[kept],
-        end[kept],
-        method=cv2.RANSAC,
-        ransacReprojThreshold=RANSAC_THRESHOLD,
-        maxIters=RANSAC_ITERATIONS,
-    )
-    if matrix is None or int(np.count_nonzero(inliers)) < MIN_POINTS:
-        return None
-    return np.asarray(matrix, np.float64)
 
 
 def motion_ratio(
@@ -156,12 +95,10 @@ def motion_ratio(
         return None
     before = np.ascontiguousarray(previous[y0 : y0 + h, x0 : x0 + w])
     after = np.ascontiguousarray(current[y0 : y0 + h, x0 : x0 + w])
-    background = _background_motion(before, after, nodes - [x0, y0])
+    background = background_motion(before, after, nodes, origin)
     if background is None:
         return None
-    # the object's motion in region pixels: shift in, move, shift back
-    obj = np.asarray(motion, np.float64).copy()
-    obj[:, 2] += obj[:, :2] @ [x0, y0] - [x0, y0]
+    obj, background = _in_region(motion, origin), _in_region(background, origin)
     corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], np.float64)
     if np.abs(corners @ (obj - background).T).max() < MIN_SEPARATION:
         return None
@@ -177,6 +114,13 @@ def motion_ratio(
     r_o, r_b = residual(obj), residual(background)
     odds = cv2.divide(r_b - r_o, r_b + r_o + np.float32(NOISE), scale=GAIN)
     return np.asarray(cv2.exp(odds), np.float32)
+
+
+def _in_region(matrix: NDArray[np.float64], origin: tuple[int, int]) -> NDArray[np.float64]:
+    """A frame similarity in the pixels of the region at ``origin``: shift in, move, shift back."""
+    local = np.asarray(matrix, np.float64).copy()
+    local[:, 2] += local[:, :2] @ origin - np.asarray(origin, np.float64)
+    return local
 
 
 def with_motion(

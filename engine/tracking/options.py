@@ -110,6 +110,10 @@ class TrackerOptions:
         or with the background (:mod:`engine.tracking.motion_contrast`;
         default True: cross-validated on the thirty training sequences, it
         raised J in every fold and cut the decay).
+    figure_ground : bool
+        Leave out of the object's motion the points inside the contour that
+        moved with the background (:func:`engine.tracking.motion.estimate_motion`;
+        default True: cross-validated on the thirty training sequences).
 
     Raises
     ------
@@ -133,6 +137,7 @@ class TrackerOptions:
     reacquire_above: float = 0.55
     hold_below: float = 0.4
     motion_contrast: bool = True
+    figure_ground: bool = True
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -167,6 +172,6 @@ class TrackerOptions:
         band = self.cut_band
         if isinstance(band, bool) or not isinstance(band, int) or not 0 <= band <= MAX_CUT_BAND:
             raise ValueError(f"cut_band must be an integer in [0, {MAX_CUT_BAND}]; got {band!r}")
-        for name in ("occlusion", "motion_contrast"):
+        for name in ("occlusion", "motion_contrast", "figure_ground"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false; got {getattr(self, name)!r}")

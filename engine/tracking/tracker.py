@@ -183,7 +183,9 @@ class Tracker:
             options["stiffness"] = stiffness
         self.options = TrackerOptions.from_mapping(options)
         opts = self.options
-        self.motion: MotionModel = motion or FlowMotion(opts.max_features, opts.flow_stiffness)
+        self.motion: MotionModel = motion or FlowMotion(
+            opts.max_features, opts.flow_stiffness, opts.figure_ground
+        )
         self.appearance: AppearanceModel = appearance or ColourHistogram(
             opts.band, opts.learning_rate
         )
@@ -485,8 +487,10 @@ class Tracker:
                 options.setdefault("cut_band", 0)
                 options.setdefault("reacquire_above", 1.0)
                 options.setdefault("hold_below", 0.0)
-            # written before the motion contrast: continue as the tracker that wrote it
+            # written before the motion contrast and the figure-ground split of the motion:
+            # continue as the tracker that wrote it
             options.setdefault("motion_contrast", False)
+            options.setdefault("figure_ground", False)
             tracker = cls(
                 state["nodes"],
                 motion=motion,

@@ -243,8 +243,8 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
     """States written before the stages (version 1) continue as if uninterrupted."""
     old: State = json.loads(VERSION_1.read_text())
     assert old["version"] == 1
-    # version 1 had no segmentation stage and no motion contrast
-    tracker = Tracker(initial(), cut_band=0, motion_contrast=False)
+    # version 1 had no segmentation stage, no motion contrast and no figure-ground split
+    tracker = Tracker(initial(), cut_band=0, motion_contrast=False, figure_ground=False)
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])
     restored = Tracker.from_state(old)
@@ -259,13 +259,14 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
 
 def test_a_version_2_state_resumes_exactly(frames: list[U8]) -> None:
     """States written before the segmentation stage continue as the tracker that wrote them."""
-    tracker = Tracker(initial(), cut_band=0, motion_contrast=False)
+    tracker = Tracker(initial(), cut_band=0, motion_contrast=False, figure_ground=False)
     run(tracker, frames[:5])
     old = through_json(tracker.to_state())
     old["version"] = 2
     del old["stages"]["segmentation"]
     del old["options"]["cut_band"]
     del old["options"]["motion_contrast"]
+    del old["options"]["figure_ground"]
     expected = run(tracker, frames[5:10])
     restored = Tracker.from_state(old)
     assert restored.options.cut_band == 0

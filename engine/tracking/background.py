@@ -1,0 +1,113 @@
+"""The background's motion around a contour: a similarity fitted to corners outside it.
+
+Two stages ask how the background moved between two frames: the motion model,
+to leave out of the object's motion the corners inside the contour that moved
+with the background (:func:`engine.tracking.motion.estimate_motion`), and the
+motion contrast, to tell each pixel's motion (:mod:`engine.tracking.motion_contrast`).
+Corners are sought at half resolution in a region around the contour, beyond a
+ring of :data:`RING` pixels, tracked by pyramidal Lucas-Kanade at full
+resolution, and a similarity is fitted to them by RANSAC.
+
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import contour_to_mask
+
+__all__ = ["MIN_POINTS", "RING", "background_motion"]
+
+RING = 6
+"""Background corners are sought beyond this many pixels of the contour: past
+the boundary's mixed pixels and the contour's own error."""
+MAX_CORNERS = 80
+"""Background corners per frame: plenty for RANSAC, well under a millisecond."""
+CORNER_QUALITY = 0.01
+"""Corners down to 1 % of the strongest one's response (weakly textured
+backgrounds still give some)."""
+CORNER_SPACING = 3
+"""Least distance (half-resolution pixels) between two corners."""
+WINDOW = 9
+"""Lucas-Kanade window side (pixels): 9 x 9 locks on background texture at a
+quarter of the cost of 15 x 15, with no loss on the training sequences."""
+LEVELS = 3
+"""Pyramid levels: with :data:`WINDOW` they follow about 36 pixels of motion."""
+RANSAC_THRESHOLD = 2.0
+"""RANSAC inlier threshold (pixels): parallax and a wrongly tracked corner
+miss the background's similarity by more."""
+RANSAC_ITERATIONS = 200
+"""RANSAC draws: a similarity has two points, so with half the corners
+inliers 200 draws miss a clean pair with probability 0.75^200, about 1e-25."""
+MIN_POINTS = 8
+"""Fewest inlier corners for a background motion: fewer, and the background
+is too flat to say how it moved."""
+
+
+def background_motion(
+    previous: NDArray[np.uint8],
+    current: NDArray[np.uint8],
+    nodes: NDArray[np.float64],
+    origin: tuple[int, int] = (0, 0),
+) -> NDArray[np.float64] | None:
+    """2 x 3 similarity of the background between two grey regions, or None if not measurable.
+
+    Parameters
+    ----------
+    previous, current : numpy.ndarray
+        Grey uint8 regions of equal size, cut from two frames at ``origin``.
+    nodes : numpy.ndarray
+        (N, 2) ``[x, y]`` frame pixels: the contour in ``previous``, whose
+        inside (and :data:`RING` pixels around it) is left out.
+    origin : tuple of int
+        ``(x, y)`` of the regions' top-left pixel in the frame.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        float64 2 x 3 mapping frame ``[x, y, 1]`` of ``previous`` to
+        ``current``; None when fewer than :data:`MIN_POINTS` corners agree
+        (a flat background, or too little of it in the region).
+    """
+    h, w = previous.shape
+    if min(h, w) < 2:
+        return None
+    # corners are sought at half resolution (even sides: OpenCV's exact halving)
+    half = np.asarray(
+        cv2.resize(
+            previous[: h - h % 2, : w - w % 2], (w // 2, h // 2), interpolation=cv2.INTER_AREA
+        )
+    )
+    near = np.ones((RING + 1, RING + 1), np.uint8)  # RING region pixels each way
+    local = np.asarray(nodes, np.float64) - np.asarray(origin, np.float64)
+    inside = contour_to_mask((local - 0.5) / 2, half.shape)  # region p is half (p - 1/2) / 2
+    mask = np.asarray(cv2.dilate(inside, near) == 0, np.uint8)
+    corners = cv2.goodFeaturesToTrack(
+        half, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=mask, blockSize=3
+    )
+    if corners is None or len(corners) < MIN_POINTS:
+        return None
+    start = np.asarray(corners * 2 + 0.5, np.float32)  # half pixel u is frame pixel 2u + 1/2
+    end, found, _ = cv2.calcOpticalFlowPyrLK(
+        previous, current, start, start.copy(), winSize=(WINDOW, WINDOW), maxLevel=LEVELS
+    )
+    kept = found.ravel() == 1
+    if np.count_nonzero(kept) < MIN_POINTS:
+        return None
+    matrix, inliers = cv2.estimateAffinePartial2D(
+        start[kept],
+        end[kept],
+        method=cv2.RANSAC,
+        ransacReprojThreshold=RANSAC_THRESHOLD,
+        maxIters=RANSAC_ITERATIONS,
+    )
+    if matrix is None or int(np.count_nonzero(inliers)) < MIN_POINTS:
+        return None
+    fitted = np.asarray(matrix, np.float64)
+    # region to frame coordinates: T(o) M T(-o)
+    offset = np.asarray(origin, np.float64)
+    fitted[:, 2] += offset - fitted[:, :2] @ offset
+    return fitted

@@ -1,0 +1,102 @@
+"""engine.tracking.background and the figure-ground split of the object's motion."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+import engine
+from engine.geometry import circle_nodes, contour_to_mask
+from engine.tracking.background import background_motion
+from engine.tracking.motion import estimate_motion
+from tests.engine.scenes import shifted, textured_frame
+
+U8 = NDArray[np.uint8]
+W, H = 320, 240
+CENTRE, RADIUS = (140.0, 120.0), 30.0
+DISC = circle_nodes(CENTRE, RADIUS, 64)
+
+
+def grey(seed: int) -> U8:
+    return np.asarray(cv2.cvtColor(textured_frame(seed, H, W), cv2.COLOR_BGR2GRAY), np.uint8)
+
+
+def scene(move: tuple[float, float], pan: tuple[float, float]) -> tuple[U8, U8]:
+    """A textured disc on textured ground; then the disc moved by ``move``, the view by ``pan``."""
+    ground, disc = grey(5), grey(6)
+    before = np.where(contour_to_mask(DISC, (H, W)) > 0, disc, ground)
+    moved = contour_to_mask(DISC + move, (H, W)) > 0
+    after = np.where(moved, shifted(disc, *move), shifted(ground, *pan))
+    return np.asarray(before, np.uint8), np.asarray(after, np.uint8)
+
+
+@pytest.mark.parametrize("origin", [(0, 0), (60, 40)])
+def test_the_background_motion_is_measured_outside_the_contour(origin: tuple[int, int]) -> None:
+    before, after = scene((6.0, 0.0), (-3.0, 2.0))
+    x0, y0 = origin
+    found = background_motion(before[y0:, x0:], after[y0:, x0:], DISC, origin)
+    assert found is not None
+    # frame coordinates whatever the region: a point of the ground moves by the pan
+    point = np.array([250.0, 60.0])
+    np.testing.assert_allclose(
+        found[:, :2] @ point + found[:, 2], point + np.array([-3.0, 2.0]), atol=0.3
+    )
+
+
+def test_a_flat_background_has_no_measurable_motion() -> None:
+    flat = np.full((H, W), 128, np.uint8)
+    assert background_motion(flat, flat, DISC) is None
+    assert background_motion(flat[:1], flat[:1], DISC) is None
+
+
+def test_points_moving_with_the_background_are_left_out_of_the_object_motion() -> None:
+    # the contour took in more still ground than disc: without the background's motion the
+    # ground's corners outvote the disc's and the "object" stays still
+    before, after = scene((6.0, 0.0), (0.0, 0.0))
+    greedy = circle_nodes((CENTRE[0] + 8.0, CENTRE[1]), RADIUS + 10.0, 64)
+    still = np.hstack([np.eye(2), np.zeros((2, 1))])
+    held = estimate_motion(before, after, greedy)
+    split = estimate_motion(before, after, greedy, background=still)
+    centre = np.array(CENTRE)
+    assert np.linalg.norm(held.apply(centre[None])[0] - centre) < 1.5  # the ground won
+    np.testing.assert_allclose(
+        split.apply(centre[None])[0], centre + np.array([6.0, 0.0]), atol=1.0
+    )
+    assert split.inlier_ratio > 0.5  # the share of the object's points that agree
+
+
+def test_an_object_moving_with_the_background_keeps_all_its_points() -> None:
+    # a still object under a still camera: every point moves "with the background"
+    before, _ = scene((0.0, 0.0), (0.0, 0.0))
+    still = np.hstack([np.eye(2), np.zeros((2, 1))])
+    split = estimate_motion(before, before, DISC, background=still)
+    np.testing.assert_allclose(split.matrix, still, atol=1e-6)
+    assert split.inlier_ratio > 0.9
+
+
+def test_a_state_from_before_the_split_resumes_without_it() -> None:
+    """Tracker states whose options lack ``figure_ground`` continue exactly as before it."""
+    frames = []
+    for k in range(8):
+        before, _ = scene((0.0, 0.0), (0.0, 0.0))
+        frame, _ = scene((0.0, 0.0), (0.0, 0.0))
+        frame = np.asarray(shifted(before, 3.0 * k, 0.0), np.uint8) if k else frame
+        frames.append(np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8))
+    old_style = engine.Tracker(DISC, figure_ground=False)
+    for frame in frames[:4]:
+        old_style.step(frame)
+    state = json.loads(json.dumps(old_style.to_state()))
+    del state["options"]["figure_ground"]
+    restored = engine.Tracker.from_state(state)
+    assert restored.options.figure_ground is False
+    for frame in frames[4:]:
+        np.testing.assert_array_equal(restored.step(frame).nodes, old_style.step(frame).nodes)
+
+
+def test_figure_ground_must_be_a_bool() -> None:
+    with pytest.raises(ValueError, match="figure_ground must be true or false"):
+        engine.Tracker(DISC, figure_ground=1)
