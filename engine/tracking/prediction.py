@@ -6,14 +6,12 @@ Two parts:
    Lucas-Kanade on corners inside the contour and on its nodes,
    forward-backward checked, with a RANSAC fit (:mod:`engine.tracking.motion`);
    the corners kept are tracked on from frame to frame and found anew every
-   :data:`REDETECT_EVERY` frames.  The background's motion is measured around
-   the contour (:func:`engine.tracking.background.background_motion`) and the
+   :data:`REDETECT_EVERY` frames.  With ``figure_ground`` the background's
+   motion is measured around the contour on the motion's halved crops and the
    points that moved with it are left out of the fit: the object is what moves
    otherwise than its surroundings (on the thirty training sequences, mean J
-   0.671 to 0.686 over five node counts; a contour that took in a textured
-   wall no longer stays on the wall).  The motion contrast measures the
-   background's motion again, on its own smaller region: the more local fit
-   serves it better (0.681 when it reused this one);
+   0.671 to 0.685 over five node counts; a contour that took in a textured
+   wall no longer stays on the wall);
 2. non-rigid: the object's own dense optical flow at each node beyond the
    similarity (:mod:`engine.tracking.flow`), trusted where it was read on
    object-like pixels and smoothed by the chain as a normalised equilibrium,
@@ -31,11 +29,10 @@ from typing import Any, Self
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import bounding_box, outward_normals
+from engine.geometry import outward_normals
 from engine.physics import deform
-from engine.tracking.background import background_motion
 from engine.tracking.flow import DEPTH, node_flow
-from engine.tracking.motion import CONTEXT, Motion, estimate_motion
+from engine.tracking.motion import Motion, estimate_motion
 from engine.tracking.stages import Grey, ObjectWeight, Prediction, check_kind
 from engine.tracking.validity import valid_contour
 
@@ -103,14 +100,13 @@ class FlowMotion:
         motion, and a bent contour that is implausible by the similarity's.
         """
         features = self._features if frame_index % REDETECT_EVERY else None
-        background = self._background(previous, current, nodes) if self.figure_ground else None
         motion = estimate_motion(
             previous,
             current,
             nodes,
             max_features=self.max_features,
             features=features,
-            background=background,
+            figure_ground=self.figure_ground,
         )
         self._features = motion.tracked
         predicted = motion.apply(nodes)  # a similarity cannot make it cross itself
@@ -130,19 +126,6 @@ class FlowMotion:
             if valid_contour(bent, current.shape, nodes):
                 predicted = bent
         return Prediction(predicted, rigid, motion.matrix, motion.inlier_ratio)
-
-    @staticmethod
-    def _background(
-        previous: Grey, current: Grey, nodes: NDArray[np.float64]
-    ) -> NDArray[np.float64] | None:
-        """The background's similarity around the contour (the motion's crop), or None."""
-        x0, y0, x1, y1 = bounding_box(previous.shape, nodes, CONTEXT, CONTEXT + 1)
-        return background_motion(
-            np.ascontiguousarray(previous[y0:y1, x0:x1]),
-            np.ascontiguousarray(current[y0:y1, x0:x1]),
-            nodes,
-            (x0, y0),
-        )
 
     def to_state(self) -> dict[str, Any]:
         """``{"kind", "features": [[x, y], ...] or None}``: the corners being tracked."""
