@@ -1,13 +1,18 @@
 """Cross-validation of efdm's options on folds of the thirty training sequences.
 
-``--cv "search_radius=10,12,16" [--cv "stiffness=20,40"] --folds 5``: each ``--cv`` names a
-``TrackerOptions`` field and its values (each parsed as JSON); several form a grid (their
-product; the other fields keep their defaults).
+``--cv "search_radius=10,12,16" [--cv "stiffness=20,40"] --folds 5 [--nodes 112,128,144]``:
+each ``--cv`` names a ``TrackerOptions`` field and its values (each parsed as JSON); several
+form a grid (their product; the other fields keep their defaults).
+
+- Node counts: each sequence is tracked from its first mask's contour resampled to each of
+  the ``--nodes`` counts (default 128 alone), and its J for a point is the mean over them.
+  One run of a clip swings by up to 0.2 with a sub-pixel change of its start, so the mean
+  over several starts says more about a choice than any one of them.
 
 - Folds: the training sequences sorted by name and dealt round-robin (sequence ``i`` of the
   sorted list goes to fold ``i mod k``), ``k = min(--folds, sequences)``: fixed, no seed.
-- Every (sequence, grid point) is tracked once; a point's J on a sequence does not depend on
-  the fold, so the folds share the runs.
+- Every (sequence, grid point, node count) is tracked once; a point's J on a sequence does
+  not depend on the fold, so the folds share the runs.
 - For each fold, every point is scored by its mean J over the other folds' sequences (mean of
   the per-sequence means) and the best is chosen (ties: the first in grid order); the held-out
   fold's sequences count with that point.  The cross-validated J (and decay, and lost
@@ -28,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bench.common.log import log
-from bench.tracking.config import Config
+from bench.tracking.config import NODES, Config
 from bench.tracking.metrics import SetScore, mean
 from bench.tracking.pool import Job, Options, describe, track_all
 from bench.tracking.run import ClipResult, TrackRun
@@ -64,6 +69,25 @@ def parse_axis(text: str) -> Axis:
     return name, parsed
 
 
+def parse_nodes(text: str) -> tuple[int, ...]:
+    """``112,128,144``: distinct node counts of at least 3.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        On anything else.
+    """
+    try:
+        counts = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        counts = ()
+    if not counts or min(counts) < 3 or len(set(counts)) != len(counts):
+        raise argparse.ArgumentTypeError(
+            f"--nodes {text!r}: expected distinct node counts of at least 3, e.g. 112,128,144"
+        )
+    return counts
+
+
 def grid(axes: Sequence[Axis]) -> list[Options]:
     """The product of the axes, in the order given (duplicate option names: an error)."""
     names = [name for name, _ in axes]
@@ -85,13 +109,13 @@ def best(scores: Mapping[Options, float]) -> Options:
     return max(scores, key=lambda p: scores[p] if math.isfinite(scores[p]) else -math.inf)
 
 
-Runs = Mapping[Options, Mapping[str, TrackRun]]
-"""efdm's run of every training sequence (by name) with every grid point."""
+Runs = Mapping[Options, Mapping[str, Sequence[TrackRun]]]
+"""efdm's runs of every training sequence (by name) with every grid point: one per node count."""
 
 
 def score(train: Runs, point: Options, names: Sequence[str]) -> float:
-    """Mean J of ``point`` over the training sequences ``names``."""
-    return mean(train[point][n].mean_j for n in names)
+    """Mean J of ``point`` over the training sequences ``names`` (each: the mean of its runs)."""
+    return mean(mean(run.mean_j for run in train[point][n]) for n in names)
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,8 +149,8 @@ class CvResults:
     ----------
     grid : list of Options
         The grid points, in the order of the flags.
-    train : dict of Options to dict of str to TrackRun
-        efdm's run of every training sequence with every point.
+    train : dict of Options to dict of str to list of TrackRun
+        efdm's runs of every training sequence with every point, one per node count.
     folds : list of Fold
         The folds and their choices.
     overall : Options or None
@@ -140,7 +164,7 @@ class CvResults:
     config: Config
     workers: int
     grid: list[Options]
-    train: dict[Options, dict[str, TrackRun]]
+    train: dict[Options, dict[str, list[TrackRun]]]
     folds: list[Fold]
     overall: Options | None
     others: dict[str, list[ClipResult]]
@@ -148,14 +172,17 @@ class CvResults:
     notes: list[str] = field(default_factory=list)
     machine: dict[str, str] = field(default_factory=dict)
     wall_seconds: float = 0.0
+    nodes: tuple[int, ...] = (NODES,)
 
     @property
     def held_out(self) -> list[tuple[int, str, TrackRun]]:
-        """(fold, sequence, run with the fold's choice) of every training sequence."""
+        """(fold, sequence, run with the fold's choice) of every training sequence, one per
+        node count: pooled, they weigh every sequence alike."""
         return [
-            (k, name, self.train[fold.chosen][name])
+            (k, name, run)
             for k, fold in enumerate(self.folds)
             for name in fold.held_out
+            for run in self.train[fold.chosen][name]
         ]
 
     @property
@@ -165,7 +192,11 @@ class CvResults:
 
     def in_sample(self, point: Options) -> SetScore:
         """A point's scores on all the training sequences (in-sample)."""
-        return SetScore.of(self.train[point].values())
+        return SetScore.of(run for runs in self.train[point].values() for run in runs)
+
+    def fold_score(self, fold: Fold) -> SetScore:
+        """The scores of a fold's held-out sequences with its choice."""
+        return SetScore.of(run for n in fold.held_out for run in self.train[fold.chosen][n])
 
 
 def run_cv(config: Config, args: argparse.Namespace) -> CvResults:
@@ -181,10 +212,15 @@ def run_cv(config: Config, args: argparse.Namespace) -> CvResults:
         specs = []
     elif len(specs) < args.folds:
         notes.append(f"{len(specs)} training sequences: {len(specs)} folds, not {args.folds}")
-    log(f"{len(grid_points)} grid points x {len(specs)} training sequences")
-    jobs = [Job(s, ("efdm",), options=p) for p in grid_points for s in specs]
+    counts = tuple(args.nodes)
+    log(f"{len(grid_points)} grid points x {len(specs)} training sequences x {counts} nodes")
+    jobs = [
+        Job(s, ("efdm",), options=p, nodes=n) for p in grid_points for s in specs for n in counts
+    ]
     done = iter(track_all(jobs, args.workers))
-    train = {p: {s.name: next(done).runs["efdm"] for s in specs} for p in grid_points}
+    train = {
+        p: {s.name: [next(done).runs["efdm"] for _ in counts] for s in specs} for p in grid_points
+    }
     folds, overall = cross_validate(train if specs else {}, args.folds)
     others: dict[str, list[ClipResult]] = {}
     if overall is not None:
@@ -198,5 +234,14 @@ def run_cv(config: Config, args: argparse.Namespace) -> CvResults:
         for job, result in zip(jobs, track_all(jobs, args.workers), strict=True):
             others[job.clip.set].append(result)
     return CvResults(
-        config, args.workers, grid_points, train, folds, overall, others, tuple(partial), notes
+        config,
+        args.workers,
+        grid_points,
+        train,
+        folds,
+        overall,
+        others,
+        tuple(partial),
+        notes,
+        nodes=counts,
     )

@@ -67,7 +67,7 @@ def folds_section(results: CvResults) -> str:
             ", ".join(fold.held_out),
             describe(fold.chosen),
             fmt(fold.train_scores[fold.chosen], ".3f"),
-            fmt(SetScore.of(results.train[fold.chosen][n] for n in fold.held_out).mean_j, ".3f"),
+            fmt(results.fold_score(fold).mean_j, ".3f"),
         ]
         for i, fold in enumerate(results.folds)
     ]
@@ -102,14 +102,21 @@ def held_out_section(results: CvResults) -> str:
     """Every training sequence with the point chosen without it, worst J first."""
     held = sorted(results.held_out, key=lambda entry: entry[2].mean_j)
     rows = [
-        [name, str(run.total), str(k + 1), describe(results.folds[k].chosen), *run_cells(run)]
+        [
+            name,
+            str(run.total),
+            str(len(run.nodes[0])) if run.nodes else "-",
+            str(k + 1),
+            describe(results.folds[k].chosen),
+            *run_cells(run),
+        ]
         for k, name, run in held
     ]
     return "\n\n".join(
         [
-            "## davis-train held out: each sequence with the point chosen without it, worst "
-            "J first",
-            md_table(["sequence", "frames", "fold", "chosen", *RUN_HEADERS], rows),
+            "## davis-train held out: each sequence with the point chosen without it (a row per "
+            "node count), worst J first",
+            md_table(["sequence", "frames", "nodes", "fold", "chosen", *RUN_HEADERS], rows),
         ]
     )
 
@@ -159,7 +166,8 @@ def render(results: CvResults) -> str:
         f"{m['cpu_count']} CPUs",
         load_line(m),
         f"- run: `{results.config.name}`, grid {axes or 'empty'} ({len(results.grid)} points), "
-        f"{len(results.folds)} folds, {results.workers} worker process(es), "
+        f"{len(results.folds)} folds, nodes {', '.join(map(str, results.nodes))} (a sequence's "
+        f"J: the mean over them), {results.workers} worker process(es), "
         f"{results.wall_seconds:.0f} s wall time",
     )
     sections = ["\n".join(top), "## Goals\n\n" + goals_table(goals(results))]
@@ -202,12 +210,16 @@ def to_json(results: CvResults) -> dict[str, Any]:
         "cross_validated": score_json(results.cv_score) if results.folds else None,
         "chosen_on_all": point_json(results.overall),
         "in_sample": [score_json(results.in_sample(p)) for p in results.grid if results.folds],
+        "nodes": list(results.nodes),
         "train": {
             describe(p): {
-                name: {"mean_j": finite(run.mean_j), "decay": finite(run.decay), "iou": run.iou}
-                for name, run in runs.items()
+                name: [
+                    {"mean_j": finite(run.mean_j), "decay": finite(run.decay), "iou": run.iou}
+                    for run in runs
+                ]
+                for name, runs in by_name.items()
             }
-            for p, runs in results.train.items()
+            for p, by_name in results.train.items()
         },
         "not_tuned_on": {
             name: {"scores": score_json(efdm_score(clips)), "clips": [clip_json(c) for c in clips]}

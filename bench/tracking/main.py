@@ -46,8 +46,8 @@ from bench.common.benchmark import Benchmark
 from bench.common.log import log
 from bench.common.machine import load_average
 from bench.tracking import cv_report, report
-from bench.tracking.config import FOLDS, FULL, QUICK, SETS, WORKERS, Config
-from bench.tracking.cv import CvResults, parse_axis, run_cv
+from bench.tracking.config import FOLDS, FULL, NODES, QUICK, SETS, WORKERS, Config
+from bench.tracking.cv import CvResults, parse_axis, parse_nodes, run_cv
 from bench.tracking.plots import plot_scores, write_sheets
 from bench.tracking.pool import Job, track_all
 from bench.tracking.report import Results
@@ -204,7 +204,8 @@ def count(least: int) -> Any:
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
-    """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv`` and ``--folds``."""
+    """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds`` and
+    ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -224,6 +225,13 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         help="cross-validate efdm's option over these values (JSON); repeat for a grid",
     )
     parser.add_argument("--folds", type=count(2), default=FOLDS, help="cross-validation folds")
+    parser.add_argument(
+        "--nodes",
+        type=parse_nodes,
+        default=(NODES,),
+        metavar="N1,N2",
+        help="with --cv: node counts each training sequence is tracked with (J: their mean)",
+    )
 
 
 BENCHMARK: Benchmark[Config, Results | CvResults] = Benchmark(

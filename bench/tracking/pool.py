@@ -21,6 +21,7 @@ from typing import Any
 import cv2
 
 from bench.common.log import set_family
+from bench.tracking.config import NODES
 from bench.tracking.run import ClipResult, run_clip
 from bench.tracking.sets import ClipSpec
 from bench.tracking.trackers import Factory, factory
@@ -55,6 +56,9 @@ class Job:
         efdm's options (empty: the defaults).
     reverse : bool
         Run the trackers in reverse order (alternated from clip to clip).
+    nodes : int
+        Nodes of the initial contour (:data:`bench.tracking.config.NODES` unless
+        cross-validating over several node counts).
     """
 
     clip: ClipSpec
@@ -62,6 +66,7 @@ class Job:
     limits: tuple[tuple[str, int], ...] = ()
     options: Options = ()
     reverse: bool = False
+    nodes: int = NODES
 
 
 @functools.cache
@@ -75,7 +80,9 @@ def track(job: Job) -> ClipResult:
     clip = job.clip.load()
     factories = {name: cached_factory(name, job.options) for name in job.trackers}
     label = f"  [{describe(job.options)}]" if job.options else ""
-    return run_clip(clip, factories, dict(job.limits), reverse=job.reverse, label=label)
+    label += f"  [{job.nodes} nodes]" if job.nodes != NODES else ""
+    limits = dict(job.limits)
+    return run_clip(clip, factories, limits, reverse=job.reverse, label=label, nodes=job.nodes)
 
 
 def start_worker() -> None:

@@ -147,9 +147,9 @@ class ClipResult:
     runs: dict[str, TrackRun]
 
 
-def initial_contour(clip: Clip) -> Nodes:
-    """The first mask's largest outer contour, resampled to :data:`NODES` nodes."""
-    return mask_to_contour(clip.masks[0], NODES)
+def initial_contour(clip: Clip, nodes: int = NODES) -> Nodes:
+    """The first mask's largest outer contour, resampled to ``nodes`` nodes."""
+    return mask_to_contour(clip.masks[0], nodes)
 
 
 def record_step(tracker: ContourTracker, run: TrackRun, clip: Clip, index: int) -> None:
@@ -180,6 +180,7 @@ def run_clip(
     *,
     reverse: bool = False,
     label: str = "",
+    nodes: int = NODES,
 ) -> ClipResult:
     """Every tracker on one clip, one after the other; ``limits`` caps the frames of some.
 
@@ -189,7 +190,8 @@ def run_clip(
     The order alternates from clip to clip (``reverse``) so that slow changes
     of the machine's load fall on every tracker alike.  Exceptions raised by
     a tracker are recorded in :attr:`TrackRun.error` and end that tracker's
-    run on this clip.  ``label`` ends the progress lines (e.g. the options).
+    run on this clip.  ``label`` ends the progress lines (e.g. the options);
+    ``nodes`` is the initial contour's node count.
     """
     total = len(clip.frames)
     runs = {
@@ -200,7 +202,7 @@ def run_clip(
     for name in names:
         run = runs[name]
         try:
-            tracker = factories[name](initial_contour(clip))
+            tracker = factories[name](initial_contour(clip, nodes))
         except Exception as exc:  # a crashing tracker is a result, not a reason to stop
             record_failure(run, clip, exc)
             continue
