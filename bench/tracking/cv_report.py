@@ -41,9 +41,10 @@ def summary_section(results: CvResults) -> str:
     chosen = describe(results.overall)
     k = len(results.folds)
     in_sample = results.in_sample(results.overall)
+    runs = "" if len(results.nodes) == 1 else f"; a run per node count, {len(results.nodes)} each"
     rows = [
-        [f"davis-train, cross-validated ({k} folds)", *score_cells(results.cv_score)],
-        [f"davis-train, {chosen} (chosen on all; in-sample)", *score_cells(in_sample)],
+        [f"davis-train, cross-validated ({k} folds{runs})", *score_cells(results.cv_score)],
+        [f"davis-train, {chosen} (chosen on all; in-sample{runs})", *score_cells(in_sample)],
     ]
     rows += [
         [f"{name}, {chosen} ({NOT_TUNED})", *score_cells(efdm_score(clips))]

@@ -113,7 +113,9 @@ class TrackerOptions:
     figure_ground : bool
         Leave out of the object's motion the points inside the contour that
         moved with the background (:func:`engine.tracking.motion.estimate_motion`;
-        default True: cross-validated on the thirty training sequences).
+        default True: cross-validated on the thirty training sequences with
+        each tracked from five node counts, chosen in all five folds, J 0.685
+        against 0.671).
 
     Raises
     ------
