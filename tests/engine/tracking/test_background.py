@@ -78,21 +78,23 @@ def test_an_object_moving_with_the_background_keeps_all_its_points() -> None:
 
 def test_a_state_from_before_the_split_resumes_without_it() -> None:
     """Tracker states whose options lack ``figure_ground`` continue exactly as before it."""
-    frames = []
-    for k in range(8):
-        before, _ = scene((0.0, 0.0), (0.0, 0.0))
-        frame, _ = scene((0.0, 0.0), (0.0, 0.0))
-        frame = np.asarray(shifted(before, 3.0 * k, 0.0), np.uint8) if k else frame
-        frames.append(np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR), np.uint8))
-    old_style = engine.Tracker(DISC, figure_ground=False)
-    for frame in frames[:4]:
-        old_style.step(frame)
+    # the disc moving against a panning view, the contour holding some ground
+    frames = [scene((6.0 * k, 0.0), (-3.0 * k, 2.0 * k))[1] for k in range(8)]
+    shots = [np.asarray(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR), np.uint8) for f in frames]
+    greedy = circle_nodes((CENTRE[0] + 8.0, CENTRE[1]), RADIUS + 10.0, 64)
+    old_style = engine.Tracker(greedy, figure_ground=False)
+    new_style = engine.Tracker(greedy)
+    for shot in shots[:4]:
+        old_style.step(shot)
+        new_style.step(shot)
     state = json.loads(json.dumps(old_style.to_state()))
     del state["options"]["figure_ground"]
     restored = engine.Tracker.from_state(state)
     assert restored.options.figure_ground is False
-    for frame in frames[4:]:
-        np.testing.assert_array_equal(restored.step(frame).nodes, old_style.step(frame).nodes)
+    for shot in shots[4:]:
+        want, got, other = old_style.step(shot), restored.step(shot), new_style.step(shot)
+        np.testing.assert_array_equal(got.nodes, want.nodes)
+        assert not np.array_equal(other.nodes, want.nodes)  # the split is at work here
 
 
 def test_figure_ground_must_be_a_bool() -> None:
