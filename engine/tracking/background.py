@@ -4,9 +4,11 @@ Two stages ask how the background moved between two frames: the motion model,
 to leave out of the object's motion the corners inside the contour that moved
 with the background (:func:`engine.tracking.motion.estimate_motion`), and the
 motion contrast, to tell each pixel's motion (:mod:`engine.tracking.motion_contrast`).
-Corners are sought at half resolution in a region around the contour, beyond a
-ring of :data:`RING` pixels, tracked by pyramidal Lucas-Kanade at full
-resolution, and a similarity is fitted to them by RANSAC.
+Corners are sought at half the given resolution in a region around the contour,
+beyond a ring of :data:`RING` pixels, tracked by pyramidal Lucas-Kanade at the
+given resolution, and a similarity is fitted to them by RANSAC.  The motion
+contrast gives frame regions; the motion model gives its crops already halved
+(then every pixel here is two of the frame's, and the crop is the "frame").
 
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
