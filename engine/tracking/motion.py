@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import bounding_box, contour_to_mask
 from engine.tracking.background import background_motion
+from engine.tracking.covering import covered_share, hidden_at
 
 __all__ = ["MAX_FEATURES", "FramePair", "Motion", "estimate_motion"]
 
@@ -80,6 +81,10 @@ OBJECT_SHARE = 0.3
 this share of the tracked points (and :data:`MIN_POINTS`) move otherwise: fewer, and the
 object moves with the background (a still object under a still camera, a passenger
 carried along with it), so every point is the object's."""
+MOSTLY_HIDDEN = 0.75
+"""An object with more than 3/4 of its silhouette behind other tracked objects is not moved
+by what little shows (a few points at its rim, some of them the front object's): it
+stays where it was until more of it shows."""
 MEDIAN_SUPPORT = 0.5
 """When RANSAC finds no similarity, the median shift is used, with half the
 support the surviving points would give."""
@@ -221,6 +226,7 @@ def estimate_motion(
     ransac_threshold: float = RANSAC_THRESHOLD,
     features: NDArray[np.float32] | None = None,
     figure_ground: bool = False,
+    covered: NDArray[np.bool_] | None = None,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
 
@@ -260,6 +266,9 @@ def estimate_motion(
         ignored when fewer than ``max_features // 4`` (at least 3).
     figure_ground : bool
         Leave out the points that moved with the background (see above).
+    covered : numpy.ndarray, optional
+        H x W bool: pixels of ``previous`` that other objects in front hide
+        (:mod:`engine.tracking.covering`); points there are left out.
 
     Returns
     -------
@@ -281,8 +290,11 @@ def estimate_motion(
     pts = np.vstack([half_nodes[::NODE_STRIDE].astype(np.float32), corners])
     is_corner = np.arange(len(pts)) >= len(pts) - len(corners)
     inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
+    hidden_share = covered_share(covered, nodes)  # of the object, behind other objects
+    if covered is not None:
+        inside &= ~hidden_at(covered, 2.0 * pts + 0.5 + np.asarray(frames.origin, np.float32))
     pts, is_corner = pts[inside], is_corner[inside]
-    if len(pts) < MIN_POINTS:
+    if len(pts) < MIN_POINTS or hidden_share > MOSTLY_HIDDEN:
         return Motion.identity(len(pts))
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, LK_ITERATIONS, LK_EPSILON)
 
@@ -360,6 +372,8 @@ def estimate_motion(
         agreed = (np.asarray(inliers).ravel() != 0) & corner_good
         tracked = (dst[agreed] + origin).astype(np.float32)
     fitted: NDArray[np.float64] = np.asarray(matrix, dtype=np.float64)
+    if hidden_share > 0:  # a part cannot tell the whole's growth from its own shift
+        fitted[:, :2] /= np.hypot(*fitted[:, 0])
     # back to frame coordinates: T(o) M T(-o)
     fitted[:, 2] += origin - fitted[:, :2] @ origin
     return Motion(fitted, support, len(pts), tracked)

@@ -7,10 +7,12 @@ removed between frames.  The frame is checked and converted once; the
 objects' own work then runs one after the other, or on a pool of threads
 (``workers``: OpenCV and the compiled kernels release the GIL).
 
-Where two objects' contours overlap, each keeps its own contour (they are
-outlines, and an object behind another goes on under it, as with any
-occluder); :func:`label_mask` gives each overlapping pixel to the object
-whose track is the more confident, taken to be the one in front.
+Where two objects overlap, the one in front is read from the frame: over the
+pixels both silhouettes claim, the object whose appearance model finds them
+more object-like shows there (:func:`engine.tracking.covering.fronts`).  It is
+tracked first, and the pixels it covers are neutral to the one behind, which
+keeps its whole outline and goes on under it (:mod:`engine.tracking.covering`);
+:func:`label_mask` gives each overlapping pixel to the object in front.
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
@@ -26,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from engine.geometry import contour_to_mask
 from engine.tracking.confidence import Status
+from engine.tracking.covering import Silhouette, fronts
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.tracker import Tracker
 
@@ -50,12 +53,16 @@ class ObjectResult:
         In [0, 1], the predicted overlap with the object.
     status : {"tracking", "uncertain", "lost"}
         From the confidence.
+    behind : tuple
+        The ids of the objects found in front of it where they overlapped
+        (:func:`engine.tracking.covering.fronts`); empty when nothing covers it.
     """
 
     id: Hashable
     contours: list[NDArray[np.float64]]
     confidence: float
     status: Status
+    behind: tuple[Hashable, ...] = ()
 
 
 class ObjectsTracker:
@@ -126,22 +133,88 @@ class ObjectsTracker:
         return tracker.contours if isinstance(tracker, PiecesTracker) else [tracker.nodes]
 
     def step(self, frame: NDArray[np.uint8]) -> list[ObjectResult]:
-        """Track every object into the next frame, in the order they were added."""
+        """Track every object into the next frame; results in the order objects were added.
+
+        Where objects overlapped in the last frame, the one in front
+        (:func:`engine.tracking.covering.fronts`) is tracked first, and the pixels it
+        covers, in the last frame and this one, are neutral to the one behind.
+        """
         from engine.tracking._frames import as_frame
 
         # checked once, a clear error before any object moves; converted to grey once
         image, grey = as_frame(frame)
-        items = list(self.trackers.items())
-        if self.workers > 1 and len(items) > 1:
-            with ThreadPoolExecutor(min(self.workers, len(items))) as pool:
-                results = list(pool.map(lambda kv: kv[1].step_prepared(image, grey), items))
-        else:
-            results = [t.step_prepared(image, grey) for _, t in items]
+        shape = grey.shape
+        silhouettes = {
+            key: found
+            for key, tracker in self.trackers.items()
+            if _started(tracker) and (found := Silhouette.of(self.contours(key), shape))
+        }
+
+        def probability(key: Hashable, box: tuple[int, int, int, int]) -> NDArray[np.float32]:
+            x0, y0, x1, y1 = box
+            return _probability(self.trackers[key], image[y0:y1, x0:x1])
+
+        in_front = fronts(silhouettes, probability)
+        results: dict[Hashable, Any] = {}
+        waiting = list(self.trackers)
+        while waiting:
+            # the objects whose fronts are done (all left, should the fronts form a loop)
+            wave = [k for k in waiting if all(f in results for f in in_front.get(k, []))]
+            wave = wave or waiting
+            covers = {
+                key: self._covered(key, in_front, silhouettes, results, shape) for key in wave
+            }
+            done = self._step_wave(image, grey, wave, covers)
+            results.update(zip(wave, done, strict=True))
+            waiting = [k for k in waiting if k not in results]
         out = []
-        for (key, _), r in zip(items, results, strict=True):
+        for key in self.trackers:
+            r = results[key]
             contours = list(r.contours) if hasattr(r, "contours") else [r.nodes]
-            out.append(ObjectResult(key, contours, float(r.confidence), r.status))
+            behind = tuple(in_front.get(key, ()))
+            out.append(ObjectResult(key, contours, float(r.confidence), r.status, behind))
         return out
+
+    def _step_wave(
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        wave: list[Hashable],
+        covers: Mapping[Hashable, NDArray[np.bool_] | None],
+    ) -> list[Any]:
+        """Track the objects of ``wave`` (on the pool of threads when there is one)."""
+
+        def one(key: Hashable) -> Any:
+            return self.trackers[key].step_prepared(image, grey, covers[key])
+
+        if self.workers > 1 and len(wave) > 1:
+            with ThreadPoolExecutor(min(self.workers, len(wave))) as pool:
+                return list(pool.map(one, wave))
+        return [one(key) for key in wave]
+
+    @staticmethod
+    def _covered(
+        key: Hashable,
+        in_front: Mapping[Hashable, list[Hashable]],
+        silhouettes: Mapping[Hashable, Silhouette],
+        results: Mapping[Hashable, Any],
+        shape: tuple[int, int],
+    ) -> NDArray[np.bool_] | None:
+        """What the objects in front of ``key`` hide: their last and (when done) new silhouettes."""
+        front = in_front.get(key, [])
+        if not front:
+            return None
+        covered = np.zeros(shape, np.bool_)
+        for other in front:
+            silhouettes[other].paint(covered)
+            if other in results:
+                r = results[other]
+                now = Silhouette.of(
+                    list(r.contours) if hasattr(r, "contours") else [r.nodes], shape
+                )
+                if now is not None:
+                    now.paint(covered)
+        return covered
 
     def to_state(self, **kwargs: Any) -> dict[str, Any]:
         """``{"kind": "objects", "max_objects", "objects": [[id, state], ...]}``, JSON-able
@@ -174,6 +247,23 @@ class ObjectsTracker:
         return restored
 
 
+def _started(tracker: Tracker | PiecesTracker) -> bool:
+    """Whether the tracker has seen a frame (a new object is only placed on this one)."""
+    if isinstance(tracker, PiecesTracker):
+        return all(t.started for t in tracker.trackers)
+    return tracker.started
+
+
+def _probability(
+    tracker: Tracker | PiecesTracker, region: NDArray[np.uint8]
+) -> NDArray[np.float32]:
+    """The object's appearance p(object) over an image region (its pieces': the largest)."""
+    if isinstance(tracker, PiecesTracker):
+        found = [t.appearance.probability(region) for t in tracker.trackers]
+        return np.asarray(np.maximum.reduce(found), np.float32)
+    return np.asarray(tracker.appearance.probability(region), np.float32)
+
+
 def _is_list_of_contours(value: Sequence[object]) -> bool:
     """Whether ``value`` is a list of (N, 2) contours rather than one contour's points."""
     return len(value) > 0 and all(np.asarray(v).ndim == 2 for v in value)
@@ -182,16 +272,19 @@ def _is_list_of_contours(value: Sequence[object]) -> bool:
 def label_mask(results: Sequence[ObjectResult], shape: tuple[int, int]) -> NDArray[np.int32]:
     """Each pixel's object: the index into ``results`` plus 1 (0: none).
 
-    Where contours overlap, the more confident object is taken to be in front
-    and wins the pixel.
+    Where contours overlap, the object in front wins the pixel: the one with the
+    fewest objects in front of it (:attr:`ObjectResult.behind`), and of those the
+    more confident.
     """
     labels = np.zeros(shape, np.int32)
-    best = np.full(shape, -1.0)
+    best = np.full(shape, -np.inf)
     for index, result in enumerate(results):
         inside = np.zeros(shape, np.uint8)
         for contour in result.contours:
             inside |= contour_to_mask(contour, shape)
-        wins = (inside > 0) & (result.confidence > best)
+        # fewer objects in front first; confidence (in [0, 1]) breaks ties
+        rank = result.confidence - 2.0 * len(result.behind)
+        wins = (inside > 0) & (rank > best)
         labels[wins] = index + 1
-        best[wins] = result.confidence
+        best[wins] = rank
     return labels

@@ -97,9 +97,15 @@ class PiecesTracker:
         """Track every piece into the next frame (see :meth:`Tracker.step`)."""
         return self.step_prepared(*as_frame(frame))
 
-    def step_prepared(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> PiecesResult:
-        """:meth:`step` on a frame checked and converted once (:meth:`Tracker.step_prepared`)."""
-        pieces = [t.step_prepared(image, grey) for t in self.trackers]
+    def step_prepared(
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        covered: NDArray[np.bool_] | None = None,
+    ) -> PiecesResult:
+        """:meth:`step` on a frame checked and converted once (:meth:`Tracker.step_prepared`,
+        ``covered`` as there: pixels other objects in front hide)."""
+        pieces = [t.step_prepared(image, grey, covered) for t in self.trackers]
         weights = np.array([abs(polygon_area(p.nodes)) for p in pieces]) + 1.0
         confidence = float(np.dot(weights, [p.confidence for p in pieces]) / weights.sum())
         return PiecesResult([p.nodes for p in pieces], confidence, status_of(confidence), pieces)

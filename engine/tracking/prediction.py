@@ -92,12 +92,16 @@ class FlowMotion:
         *,
         frame_index: int,
         object_weight: ObjectWeight,
+        covered: NDArray[np.bool_] | None = None,
     ) -> Prediction:
         """The contour moved by the similarity, then bent by the smoothed flow (if not fast).
 
         A similarity that makes the contour implausible
         (:func:`~engine.tracking.validity.valid_contour`) is replaced by no
         motion, and a bent contour that is implausible by the similarity's.
+        Given ``covered`` (H x W bool: pixels of ``previous`` that other objects
+        in front hide), the similarity leaves those pixels out and the contour is
+        not bent.
         """
         features = self._features if frame_index % REDETECT_EVERY else None
         motion = estimate_motion(
@@ -107,6 +111,7 @@ class FlowMotion:
             max_features=self.max_features,
             features=features,
             figure_ground=self.figure_ground,
+            covered=covered,
         )
         self._features = motion.tracked
         predicted = motion.apply(nodes)  # a similarity cannot make it cross itself
@@ -115,7 +120,9 @@ class FlowMotion:
             self._features = None
         rigid = predicted
         fast = float(np.linalg.norm(predicted - nodes, axis=1).mean()) > FLOW_REACH
-        if self.flow_stiffness > 0 and not fast:
+        # an object partly behind another is moved rigidly: the flow next to the front
+        # object's edge is smoothed into the front object's motion
+        if self.flow_stiffness > 0 and not fast and covered is None:
             inward = -outward_normals(nodes)
             flow = node_flow(previous, current, nodes, inward)
             residual = (nodes + flow) - predicted

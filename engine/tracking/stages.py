@@ -118,6 +118,10 @@ class MotionModel(Protocol):
         ``frame_index`` counts the tracker's frames (``current``'s index);
         ``object_weight`` gives p(object) in the previous frame, to trust
         motion read on object pixels more than motion read on background.
+        Where other tracked objects hide part of this one
+        (:class:`~engine.tracking.ObjectsTracker`), the tracker also passes
+        ``covered=`` (H x W bool, pixels of ``previous`` they hide); a model
+        used in such sessions takes it as a keyword.
         """
 
     def to_state(self) -> dict[str, Any]:

@@ -56,6 +56,7 @@ from engine.tracking.confidence import (
     search_score,
     status_of,
 )
+from engine.tracking.covering import cover_maps, covered_share
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.holding import carry, hold_factors, side_contrast
 from engine.tracking.maps import roi_box
@@ -104,6 +105,14 @@ COMPACT_BYTES = 52 * 1024
 """JSON size a compact state aims at (the previous frame's detail gets what the rest
 leaves): the service's Redis record adds about 9 kB for a 128-node session (its
 contour and rest shape), which keeps a committed frame within 64 kB."""
+SEARCH_UNLESS_COVERED = 0.2
+"""An object at least this much hidden by other tracked objects in front is not searched
+for elsewhere: its low score is theirs, and it is known to be behind them."""
+BEHIND_FROM = 0.02
+"""An object this much hidden by other tracked objects in front is behind them for the
+frame: no joint cut (whose smoothness would pull the unseen part in, as a curve shortens
+where nothing holds it), and it learns nothing (the pixels inside its contour are partly
+theirs).  Their rims touching it hide less than this."""
 SEARCH_BELOW = 0.445
 """A frame whose contour's search score (:func:`engine.tracking.confidence.search_score`)
 is below this starts a search, and one at or above it gives the shape to search for
@@ -220,6 +229,11 @@ class Tracker:
         """The current contour, (N, 2) ``[x, y]`` (a copy)."""
         return self._nodes.copy()
 
+    @property
+    def started(self) -> bool:
+        """Whether a frame was seen: the next one is tracked (not taken as the first)."""
+        return self._previous is not None
+
     def reset(self, nodes: ArrayLike) -> None:
         """Place a new contour; the next frame is taken as the one it lies on."""
         self._nodes = self._initial(nodes)
@@ -249,17 +263,24 @@ class Tracker:
         """
         return self.step_prepared(*_as_frame(frame))
 
-    def step_prepared(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
+    def step_prepared(
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        covered: NDArray[np.bool_] | None = None,
+    ) -> TrackResult:
         """:meth:`step` on a frame already checked and converted (shared by several trackers).
 
         ``image, grey`` as :func:`engine.tracking._frames.as_frame` returns them: the
-        contiguous BGR (or grey) image and its grey version.
+        contiguous BGR (or grey) image and its grey version.  ``covered`` (H x W
+        bool), from :class:`~engine.tracking.ObjectsTracker`: the pixels other
+        objects in front of this one hide (:mod:`engine.tracking.covering`).
 
         Raises
         ------
         ValueError
-            If they are not uint8, ``grey`` is not H x W, or ``image`` is not that
-            H x W (x 3).
+            If they are not uint8, ``grey`` is not H x W, ``image`` is not that
+            H x W (x 3), or ``covered`` is not H x W bool.
         """
         if (
             image.dtype != np.uint8
@@ -273,33 +294,50 @@ class Tracker:
                 "step_prepared takes a uint8 H x W (x 3) image and its H x W grey version; "
                 f"got {image.dtype} {image.shape} and {grey.dtype} {grey.shape}"
             )
+        if covered is not None and (covered.dtype != np.bool_ or covered.shape != grey.shape):
+            raise ValueError(
+                f"covered must be a bool mask of the frame's size {grey.shape}; "
+                f"got {covered.dtype} {covered.shape}"
+            )
+        if covered is not None and not covered.any():
+            covered = None  # nothing in front: exactly as a tracker alone
         with _repeatable_opencv():
-            return self._step(image, grey)
+            return self._step(image, grey, covered)
 
-    def _step(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
+    def _step(
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        covered: NDArray[np.bool_] | None = None,
+    ) -> TrackResult:
         self.frame_index += 1
         if min(grey.shape) < MIN_SIDE:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
             return self._start(image, grey)
+        # covered: where the objects in front were and are (the motion reads it on the
+        # previous frame, the cue maps on this one); given only to a motion model in a crowd
+        hidden = {} if covered is None else {"covered": covered}
         prediction = self.motion.predict(
             self._previous,
             grey,
             self._nodes,
             frame_index=self.frame_index,
             object_weight=self.cues.object_weight,
+            **hidden,
         )
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
         memory = self._memory
         hold = memory.hold
-        attempt = self._attempt(image, grey, prediction, self.cues, hold)
+        attempt = self._attempt(image, grey, prediction, self.cues, hold, covered)
         visible = self._visible(grey)
-        if attempt.score < SEARCH_BELOW and visible:
+        share = covered_share(covered, prediction.nodes)
+        if attempt.score < SEARCH_BELOW and visible and share < SEARCH_UNLESS_COVERED:
             memory.misses += 1
             retry = self._search(image, grey, prediction)
             if retry is not None:
                 moved = carry(hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
-                other = self._attempt(image, grey, retry, cues, moved)
+                other = self._attempt(image, grey, retry, cues, moved, covered)
                 margin = attempt.score + REACQUIRE_MARGIN
                 if other.score >= self.options.reacquire_above and other.score > margin:
                     prediction, attempt, self.cues, hold = retry, other, cues, moved
@@ -319,9 +357,10 @@ class Tracker:
             signal = confidence = 0.0
         self._nodes = nodes
         self._previous = grey
-        if signal >= LEARN_ABOVE:
-            self.appearance.update(image, self._nodes)
-        self.segmentation.learn(image, self._nodes)
+        if share < BEHIND_FROM:  # another object's colours are not this one's
+            if signal >= LEARN_ABOVE:
+                self.appearance.update(image, self._nodes)
+            self.segmentation.learn(image, self._nodes)
         return self._result(refinement.iterations, refinement.converged, confidence)
 
     def _attempt(
@@ -331,6 +370,7 @@ class Tracker:
         prediction: Prediction,
         cues: BoundaryCues,
         hold: NDArray[np.float64],
+        covered: NDArray[np.bool_] | None = None,
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result."""
         maps = cues.maps(image, grey, prediction, self.appearance)
@@ -343,6 +383,7 @@ class Tracker:
                 probability = with_motion(maps.probability, ratio)
                 guide = dataclasses.replace(maps, probability=probability, observed=maps.seen)
                 maps = dataclasses.replace(maps, motion=ratio)
+        guide, maps = cover_maps(guide, covered), cover_maps(maps, covered)
         refinement = refine(
             guide,
             grey.shape,
@@ -352,7 +393,9 @@ class Tracker:
             hold=hold,
         )
         nodes = refinement.nodes
-        cut = self.segmentation.segment(image, maps, prediction.nodes, nodes)
+        # behind another object, the cut's smoothness would pull the unseen part in
+        behind = covered_share(covered, prediction.nodes) >= BEHIND_FROM
+        cut = None if behind else self.segmentation.segment(image, maps, prediction.nodes, nodes)
         if cut is not None and valid_contour(cut, grey.shape, self._nodes):
             nodes = cut
         found = evidence(maps, nodes, refinement.converged)

@@ -1,0 +1,138 @@
+"""engine.tracking.covering: an object behind another keeps its outline under it."""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+
+import numpy as np
+import pytest
+
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
+from engine.testing.crowd import make_crowd
+from engine.tracking import ObjectsTracker, Tracker
+from engine.tracking.covering import (
+    NEUTRAL,
+    Silhouette,
+    cover_maps,
+    covered_share,
+    fronts,
+    in_front,
+)
+from engine.tracking.maps import Maps
+from engine.tracking.motion import estimate_motion
+
+# seed 0 of the crowd: object 5 passes in front of object 4 from frame 14 on, hiding up to
+# about 70 % of it
+CROWD = make_crowd(seed=0, length=32)
+BACK, FRONT = 4, 5
+
+
+def _ious(results: list[list[np.ndarray]], key: int) -> np.ndarray:
+    shape = CROWD.frames[0].shape[:2]
+    return np.array(
+        [
+            mask_iou(contour_to_mask(contours[0], shape), CROWD.masks[key][t])
+            for t, contours in enumerate(results)
+        ]
+    )
+
+
+def test_the_object_behind_keeps_its_outline_and_knows_what_is_in_front() -> None:
+    starts = {k: mask_to_contour(CROWD.masks[k][0], 64) for k in (BACK, FRONT)}
+    together = ObjectsTracker(starts)
+    alone = Tracker(starts[BACK])
+    tracked: dict[Hashable, list[list[np.ndarray]]] = {BACK: [], FRONT: []}
+    on_its_own, behind = [], []
+    for frame in CROWD.frames:
+        results = together.step(frame)
+        for r in results:
+            tracked[r.id].append(r.contours)
+        behind.append(results[0].behind)
+        on_its_own.append([alone.step(frame).nodes])
+    covered = [
+        t for t in range(len(CROWD.frames)) if (CROWD.masks[BACK][t] & CROWD.masks[FRONT][t]).any()
+    ]
+    assert len(covered) > 10
+    # the front object's colours show over the overlap: it is found in front, every frame
+    assert all(behind[t] == (FRONT,) for t in covered[1:])
+    assert all(behind[t] == () for t in range(covered[0]))
+    assert _ious(tracked[FRONT], FRONT)[1:].min() > 0.95
+    ours = _ious(tracked[BACK], BACK)
+    # alone, the tracker shrinks onto the visible part (the front object's edge is the
+    # nearest boundary); told what is in front, it keeps the whole outline
+    assert _ious(on_its_own, BACK)[covered].mean() < 0.7
+    assert ours[covered].mean() > 0.9
+    assert ours[1:].min() > 0.8
+
+
+def test_fronts_follow_the_colours_of_the_overlap() -> None:
+    shape = (60, 80)
+    left = Silhouette.of([circle_nodes((30, 30), 15, 32)], shape)
+    right = Silhouette.of([circle_nodes((50, 30), 15, 32)], shape)
+    far = Silhouette.of([circle_nodes((70, 50), 5, 16)], shape)
+    assert left is not None
+    assert right is not None
+    assert far is not None
+    assert far.overlap(left) is None
+
+    def red_wins(key: object, box: tuple[int, int, int, int]) -> np.ndarray:
+        x0, y0, x1, y1 = box
+        return np.full((y1 - y0, x1 - x0), 0.9 if key == "right" else 0.2, np.float32)
+
+    found = fronts({"left": left, "right": right, "far": far}, red_wins)
+    assert found == {"left": ["right"], "right": [], "far": []}
+    assert (
+        in_front(np.zeros((2, 2), np.float32), np.ones((2, 2), np.float32), np.zeros((2, 2), bool))
+        is None
+    )
+
+
+@pytest.mark.parametrize("edge_step", [1, 2])
+def test_covered_pixels_are_neutral_and_still_seen(edge_step: int) -> None:
+    probability = np.full((20, 30), 0.9, np.float32)
+    edges = np.ones((20 // edge_step, 30 // edge_step), np.float32)
+    motion = np.full((20, 30), 3.0, np.float32)
+    maps = Maps((10, 5), probability, edges, edge_step, motion=motion)
+    covered = np.zeros((40, 60), bool)
+    covered[5:15, 10:20] = True  # the region's top-left 10 x 10 pixels
+    out = cover_maps(maps, covered)
+    assert (out.probability[:10, :10] == NEUTRAL).all()
+    assert (out.probability[10:, :] == 0.9).all()
+    assert (out.probability[:, 10:] == 0.9).all()
+    assert out.observed is not None
+    assert (out.observed == 0.9).all()
+    assert out.motion is not None
+    assert (out.motion[:10, :10] == 1.0).all()
+    assert (out.motion[10:] == 3.0).all()
+    assert (out.edges[: 10 // edge_step, : 10 // edge_step] == 0).all()
+    assert (out.edges[10 // edge_step :] == 1).all()
+    assert cover_maps(maps, None) is maps
+    assert cover_maps(maps, np.zeros((40, 60), bool)) is maps  # nothing covered there
+
+
+def test_covered_share_and_a_mostly_hidden_object_stays_put() -> None:
+    frame = CROWD.frames[0]
+    grey = np.ascontiguousarray(frame[..., 1])
+    nodes = mask_to_contour(CROWD.masks[0][0], 64)
+    hidden = CROWD.masks[0][0] > 0
+    assert covered_share(None, nodes) == 0.0
+    assert covered_share(hidden, nodes) > 0.95
+    moved = np.roll(grey, 3, axis=1)
+    assert np.linalg.norm(estimate_motion(grey, moved, nodes).matrix[:, 2]) > 2
+    still = estimate_motion(grey, moved, nodes, covered=hidden)
+    np.testing.assert_array_equal(still.matrix, np.eye(2, 3))
+
+
+def test_a_tracker_told_nothing_is_covered_tracks_as_alone() -> None:
+    nodes = mask_to_contour(CROWD.masks[0][0], 64)
+    a, b = Tracker(nodes), Tracker(nodes)
+    nothing = np.zeros(CROWD.frames[0].shape[:2], bool)
+    for frame in CROWD.frames[:4]:
+        grey = np.ascontiguousarray(frame.mean(axis=2).astype(np.uint8))
+        np.testing.assert_array_equal(
+            a.step_prepared(frame, grey).nodes, b.step_prepared(frame, grey, nothing).nodes
+        )
+    with pytest.raises(ValueError, match="covered"):
+        a.step_prepared(frame, grey, nothing[:-1])
+    with pytest.raises(ValueError, match="covered"):
+        a.step_prepared(frame, grey, nothing.astype(np.uint8))
