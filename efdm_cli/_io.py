@@ -212,7 +212,7 @@ class MaskWriter:
         self, name: str, index: int, objects: list[Any], shape: tuple[int, int]
     ) -> None:
         """Write frame ``index`` as a label image: each pixel the id of its object (0: none),
-        8-bit; where objects overlap, the more confident one's
+        8-bit; where objects overlap, the one in front's
         (:func:`engine.tracking.label_mask`)."""
         from engine.tracking.objects import label_mask
 

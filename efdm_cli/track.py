@@ -106,6 +106,7 @@ def _record(index: int, result: StepResult, elapsed_ms: float) -> str:
                 **_shape(o.contours),
                 "confidence": round(float(o.confidence), 4),
                 "status": str(o.status),
+                "behind": list(o.behind),
             }
             for o in result.objects
         ]

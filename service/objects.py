@@ -199,6 +199,7 @@ class SessionObjects:
                 **_shape(r.contours),
                 "confidence": float(r.confidence),
                 "status": r.status,
+                "behind": [str(key) for key in r.behind],
             }
             for r in results
         ]

@@ -208,6 +208,11 @@ class ObjectOut(BaseModel):
     contours: list[list[Point]] | None = Field(None, description="its pieces' contours")
     confidence: float | None = Field(None, ge=0, le=1)
     status: Literal["tracking", "uncertain", "lost"] | None = None
+    behind: list[str] | None = Field(
+        None,
+        description="in a frame result: the ids of the objects in front of it where they "
+        "overlap (their pixels are left to them; it keeps its whole outline under them)",
+    )
 
 
 class FrameOut(BaseModel):

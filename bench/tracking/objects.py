@@ -105,7 +105,8 @@ def render(results: dict[str, Any], seconds: float) -> str:
         "",
         "Each object is its own tracker: a frame costs about the sum of the objects' costs,"
         " and two threads gain little (the trackers hold the GIL for much of their time).",
-        "The objects that fall short are those another object covers for a while.",
+        "Object 4 passes behind object 5 (up to about 80 % hidden): told what is in front"
+        " (`engine.tracking.covering`), it keeps its whole outline under it.",
         "",
     ]
     return "\n".join(lines)
