@@ -15,14 +15,29 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 
 from __future__ import annotations
 
+from typing import Final, Literal, TypeAlias
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask
 
-__all__ = ["MIN_POINTS", "RING", "background_motion"]
+__all__ = [
+    "MEASURE",
+    "MIN_POINTS",
+    "RING",
+    "Background",
+    "background_motion",
+    "frame_background",
+    "in_region",
+]
 
+MEASURE: Final = "measure"
+"""Passed for a background's motion: measure it here (around the contour)."""
+Background: TypeAlias = NDArray[np.float64] | Literal["measure"] | None
+"""A background's frame similarity measured elsewhere (None: not measurable there), or
+:data:`MEASURE`."""
 RING = 6
 """Background corners are sought beyond this many pixels of the contour: past
 the boundary's mixed pixels and the contour's own error."""
@@ -77,18 +92,53 @@ def background_motion(
     h, w = previous.shape
     if min(h, w) < 2:
         return None
-    # corners are sought at half resolution (even sides: OpenCV's exact halving)
-    half = np.asarray(
-        cv2.resize(
-            previous[: h - h % 2, : w - w % 2], (w // 2, h // 2), interpolation=cv2.INTER_AREA
-        )
-    )
+    half = _halved(previous)
     near = np.ones((RING + 1, RING + 1), np.uint8)  # RING region pixels each way
     local = np.asarray(nodes, np.float64) - np.asarray(origin, np.float64)
     inside = contour_to_mask((local - 0.5) / 2, half.shape)  # region p is half (p - 1/2) / 2
-    mask = np.asarray(cv2.dilate(inside, near) == 0, np.uint8)
+    allowed = np.asarray(cv2.dilate(inside, near) == 0, np.uint8)
+    return _fit(previous, current, half, allowed, origin)
+
+
+def frame_background(
+    previous: NDArray[np.uint8], current: NDArray[np.uint8], excluded: NDArray[np.bool_]
+) -> NDArray[np.float64] | None:
+    """The background's similarity over whole frames, the ``excluded`` pixels left out.
+
+    For a session of several objects (:class:`engine.tracking.ObjectsTracker`):
+    one fit for all of them, ``excluded`` (H x W bool) their silhouettes; their
+    :data:`RING` is left out too.  Returns as :func:`background_motion` does.
+    """
+    h, w = previous.shape
+    if min(h, w) < 2:
+        return None
+    half = _halved(previous)
+    hh, hw = half.shape
+    hidden = np.ascontiguousarray(excluded[: 2 * hh : 2, : 2 * hw : 2], dtype=np.uint8)
+    near = np.ones((RING + 1, RING + 1), np.uint8)
+    allowed = np.asarray(cv2.dilate(hidden, near) == 0, np.uint8)
+    return _fit(previous, current, half, allowed, (0, 0))
+
+
+def _halved(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """``image`` at half resolution (even sides: OpenCV's exact halving)."""
+    h, w = image.shape
+    return np.asarray(
+        cv2.resize(image[: h - h % 2, : w - w % 2], (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+    )
+
+
+def _fit(
+    previous: NDArray[np.uint8],
+    current: NDArray[np.uint8],
+    half: NDArray[np.uint8],
+    allowed: NDArray[np.uint8],
+    origin: tuple[int, int],
+) -> NDArray[np.float64] | None:
+    """Corners of ``half`` (``previous`` halved) where ``allowed``, tracked into ``current``,
+    and the similarity RANSAC fits to them, in frame coordinates (regions at ``origin``)."""
     corners = cv2.goodFeaturesToTrack(
-        half, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=mask, blockSize=3
+        half, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=allowed, blockSize=3
     )
     if corners is None or len(corners) < MIN_POINTS:
         return None
@@ -113,3 +163,10 @@ def background_motion(
     offset = np.asarray(origin, np.float64)
     fitted[:, 2] += offset - fitted[:, :2] @ offset
     return fitted
+
+
+def in_region(matrix: NDArray[np.float64], origin: tuple[int, int]) -> NDArray[np.float64]:
+    """A frame similarity in the pixels of the region at ``origin``: shift in, move, shift back."""
+    local = np.asarray(matrix, np.float64).copy()
+    local[:, 2] += local[:, :2] @ origin - np.asarray(origin, np.float64)
+    return local

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.geometry import bounding_box, contour_to_mask
-from engine.tracking.background import background_motion
+from engine.tracking.background import MEASURE, Background, background_motion, in_region
 from engine.tracking.covering import covered_share, hidden_at
 
 __all__ = ["MAX_FEATURES", "FramePair", "Motion", "estimate_motion"]
@@ -173,6 +173,11 @@ class FramePair:
         after = np.ascontiguousarray(current[y0:y1, x0:x1])
         return cls((x0, y0), before, after, _halve(before), _halve(after))
 
+    @classmethod
+    def whole(cls, previous: NDArray[np.uint8], current: NDArray[np.uint8]) -> FramePair:
+        """Both grey frames whole (the crop is the frame)."""
+        return cls((0, 0), previous, current, _halve(previous), _halve(current))
+
     def to_half(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """Frame ``[x, y]`` points to half-resolution crop coordinates."""
         result: NDArray[np.float64] = 0.5 * (points - np.asarray(self.origin)) - 0.25
@@ -227,6 +232,7 @@ def estimate_motion(
     features: NDArray[np.float32] | None = None,
     figure_ground: bool = False,
     covered: NDArray[np.bool_] | None = None,
+    background: Background = MEASURE,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
 
@@ -269,6 +275,10 @@ def estimate_motion(
     covered : numpy.ndarray, optional
         H x W bool: pixels of ``previous`` that other objects in front hide
         (:mod:`engine.tracking.covering`); points there are left out.
+    background : numpy.ndarray, None or "measure"
+        With ``figure_ground``: the background's frame similarity measured
+        over the whole frame (:mod:`engine.tracking.shared`; None: it could
+        not be), or :data:`~engine.tracking.background.MEASURE` it here.
 
     Returns
     -------
@@ -349,7 +359,12 @@ def estimate_motion(
     dst = np.where(ok_fine[:, None], dst, guess)
     origin = np.asarray(frames.origin, dtype=np.float64)
     corner_good = is_corner[good]
-    background = _background(frames, half_nodes) if figure_ground else None
+    if not figure_ground or background is None:
+        background = None
+    elif isinstance(background, str):
+        background = _background(frames, half_nodes)
+    else:  # a frame similarity, in crop coordinates
+        background = in_region(background, frames.origin)
     if background is not None:
         moving = _not_with(background, src, dst)
         if moving is not None:

@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.tracking.background import background_motion
+from engine.tracking.background import MEASURE, Background, background_motion, in_region
 
 __all__ = ["GAIN", "motion_ratio", "with_motion"]
 
@@ -65,6 +65,7 @@ def motion_ratio(
     shape: tuple[int, int],
     nodes: NDArray[np.float64],
     motion: NDArray[np.float64],
+    background: Background = MEASURE,
 ) -> NDArray[np.float32] | None:
     """Odds ratio ``e^m`` that each pixel of a region moves with the object, not the background.
 
@@ -80,6 +81,11 @@ def motion_ratio(
     motion : numpy.ndarray
         2 x 3 similarity mapping ``[x, y, 1]`` of ``previous`` to ``current``:
         the object's motion.
+    background : numpy.ndarray, None or "measure"
+        The background's frame similarity measured over the whole frame (a
+        session of several objects, :mod:`engine.tracking.shared`; None: it
+        could not be), or :data:`~engine.tracking.background.MEASURE` it in
+        the region.
 
     Returns
     -------
@@ -95,10 +101,11 @@ def motion_ratio(
         return None
     before = np.ascontiguousarray(previous[y0 : y0 + h, x0 : x0 + w])
     after = np.ascontiguousarray(current[y0 : y0 + h, x0 : x0 + w])
-    background = background_motion(before, after, nodes, origin)
+    if isinstance(background, str):
+        background = background_motion(before, after, nodes, origin)
     if background is None:
         return None
-    obj, background = _in_region(motion, origin), _in_region(background, origin)
+    obj, background = in_region(motion, origin), in_region(background, origin)
     corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], np.float64)
     if np.abs(corners @ (obj - background).T).max() < MIN_SEPARATION:
         return None
@@ -114,13 +121,6 @@ def motion_ratio(
     r_o, r_b = residual(obj), residual(background)
     odds = cv2.divide(r_b - r_o, r_b + r_o + np.float32(NOISE), scale=GAIN)
     return np.asarray(cv2.exp(odds), np.float32)
-
-
-def _in_region(matrix: NDArray[np.float64], origin: tuple[int, int]) -> NDArray[np.float64]:
-    """A frame similarity in the pixels of the region at ``origin``: shift in, move, shift back."""
-    local = np.asarray(matrix, np.float64).copy()
-    local[:, 2] += local[:, :2] @ origin - np.asarray(origin, np.float64)
-    return local
 
 
 def with_motion(

@@ -30,6 +30,7 @@ from engine.geometry import contour_to_mask
 from engine.tracking.confidence import Status
 from engine.tracking.covering import Silhouette, fronts
 from engine.tracking.pieces import PiecesTracker
+from engine.tracking.shared import SharedMotion
 from engine.tracking.tracker import Tracker
 
 __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
@@ -98,6 +99,9 @@ class ObjectsTracker:
             raise ValueError("max_objects and workers must be at least 1")
         self.max_objects, self.workers, self.options = max_objects, workers, dict(options)
         self.trackers: dict[Hashable, Tracker | PiecesTracker] = {}
+        # the last grey frame, for the whole-frame measurements (engine.tracking.shared)
+        self._previous: NDArray[np.uint8] | None = None
+        self._pool: ThreadPoolExecutor | None = None  # made on first use, with workers > 1
         for key, outline in (objects or {}).items():
             self.add(key, outline)
 
@@ -155,6 +159,8 @@ class ObjectsTracker:
             return _probability(self.trackers[key], image[y0:y1, x0:x1])
 
         in_front = fronts(silhouettes, probability)
+        shared = self._shared(grey, silhouettes)
+        self._previous = grey
         results: dict[Hashable, Any] = {}
         waiting = list(self.trackers)
         while waiting:
@@ -164,7 +170,7 @@ class ObjectsTracker:
             covers = {
                 key: self._covered(key, in_front, silhouettes, results, shape) for key in wave
             }
-            done = self._step_wave(image, grey, wave, covers)
+            done = self._step_wave(image, grey, wave, covers, shared)
             results.update(zip(wave, done, strict=True))
             waiting = [k for k in waiting if k not in results]
         out = []
@@ -175,21 +181,36 @@ class ObjectsTracker:
             out.append(ObjectResult(key, contours, float(r.confidence), r.status, behind))
         return out
 
+    def _shared(
+        self, grey: NDArray[np.uint8], silhouettes: Mapping[Hashable, Silhouette]
+    ) -> SharedMotion | None:
+        """The whole frame's background motion and flow, when two or more objects go on
+        from the last frame (one object measures around itself, as a tracker alone)."""
+        previous = self._previous
+        if len(silhouettes) < 2 or previous is None or previous.shape != grey.shape:
+            return None
+        excluded = np.zeros(grey.shape, np.bool_)
+        for silhouette in silhouettes.values():
+            silhouette.paint(excluded)
+        return SharedMotion.measure(previous, grey, excluded)
+
     def _step_wave(
         self,
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
         wave: list[Hashable],
         covers: Mapping[Hashable, NDArray[np.bool_] | None],
+        shared: SharedMotion | None,
     ) -> list[Any]:
         """Track the objects of ``wave`` (on the pool of threads when there is one)."""
 
         def one(key: Hashable) -> Any:
-            return self.trackers[key].step_prepared(image, grey, covers[key])
+            return self.trackers[key].step_prepared(image, grey, covers[key], shared)
 
         if self.workers > 1 and len(wave) > 1:
-            with ThreadPoolExecutor(min(self.workers, len(wave))) as pool:
-                return list(pool.map(one, wave))
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="efdm-objects")
+            return list(self._pool.map(one, wave))
         return [one(key) for key in wave]
 
     @staticmethod
@@ -244,6 +265,9 @@ class ObjectsTracker:
             is_pieces = isinstance(inner, Mapping) and inner.get("kind") == "pieces"
             tracker = PiecesTracker.from_state(inner) if is_pieces else Tracker.from_state(inner)
             restored.trackers[key] = tracker
+        # the frame they go on from (each tracker checks it is its own)
+        frames = [_previous_frame(t) for t in restored.trackers.values()]
+        restored._previous = next((f for f in frames if f is not None), None)
         return restored
 
 
@@ -252,6 +276,12 @@ def _started(tracker: Tracker | PiecesTracker) -> bool:
     if isinstance(tracker, PiecesTracker):
         return all(t.started for t in tracker.trackers)
     return tracker.started
+
+
+def _previous_frame(tracker: Tracker | PiecesTracker) -> NDArray[np.uint8] | None:
+    """The grey frame the tracker's contour is on (its first piece's)."""
+    first = tracker.trackers[0] if isinstance(tracker, PiecesTracker) else tracker
+    return first.previous_frame
 
 
 def _probability(

@@ -31,8 +31,10 @@ from numpy.typing import NDArray
 
 from engine.geometry import outward_normals
 from engine.physics import deform
+from engine.tracking.background import MEASURE
 from engine.tracking.flow import DEPTH, node_flow
 from engine.tracking.motion import Motion, estimate_motion
+from engine.tracking.shared import SharedMotion
 from engine.tracking.stages import Grey, ObjectWeight, Prediction, check_kind
 from engine.tracking.validity import valid_contour
 
@@ -93,6 +95,7 @@ class FlowMotion:
         frame_index: int,
         object_weight: ObjectWeight,
         covered: NDArray[np.bool_] | None = None,
+        shared: SharedMotion | None = None,
     ) -> Prediction:
         """The contour moved by the similarity, then bent by the smoothed flow (if not fast).
 
@@ -101,7 +104,9 @@ class FlowMotion:
         motion, and a bent contour that is implausible by the similarity's.
         Given ``covered`` (H x W bool: pixels of ``previous`` that other objects
         in front hide), the similarity leaves those pixels out and the contour is
-        not bent.
+        not bent.  Given ``shared`` (a session of several objects, measured between
+        these two frames), its background motion and dense flow are read instead of
+        measured around the contour.
         """
         features = self._features if frame_index % REDETECT_EVERY else None
         motion = estimate_motion(
@@ -112,6 +117,7 @@ class FlowMotion:
             features=features,
             figure_ground=self.figure_ground,
             covered=covered,
+            background=MEASURE if shared is None else shared.background,
         )
         self._features = motion.tracked
         predicted = motion.apply(nodes)  # a similarity cannot make it cross itself
@@ -124,7 +130,12 @@ class FlowMotion:
         # object's edge is smoothed into the front object's motion
         if self.flow_stiffness > 0 and not fast and covered is None:
             inward = -outward_normals(nodes)
-            flow = node_flow(previous, current, nodes, inward)
+            if shared is None:
+                flow = node_flow(previous, current, nodes, inward)
+            elif shared.flow is None:
+                flow = np.zeros_like(nodes)
+            else:
+                flow = shared.flow.at(nodes + DEPTH * inward)
             residual = (nodes + flow) - predicted
             w = object_weight(nodes + DEPTH * inward)
             num = deform(w[:, None] * residual, self.flow_stiffness)

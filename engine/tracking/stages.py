@@ -118,10 +118,11 @@ class MotionModel(Protocol):
         ``frame_index`` counts the tracker's frames (``current``'s index);
         ``object_weight`` gives p(object) in the previous frame, to trust
         motion read on object pixels more than motion read on background.
-        Where other tracked objects hide part of this one
-        (:class:`~engine.tracking.ObjectsTracker`), the tracker also passes
-        ``covered=`` (H x W bool, pixels of ``previous`` they hide); a model
-        used in such sessions takes it as a keyword.
+        In a session of several objects (:class:`~engine.tracking.ObjectsTracker`)
+        the tracker also passes ``covered=`` where other objects hide part of this
+        one (H x W bool, pixels of ``previous`` they hide) and ``shared=`` (a
+        :class:`~engine.tracking.shared.SharedMotion` measured once over the
+        frame); a model used in such sessions takes them as keywords.
         """
 
     def to_state(self) -> dict[str, Any]:

@@ -49,6 +49,7 @@ from engine.tracking._state_codec import (
     unpack_image,
 )
 from engine.tracking.appearance import ColourHistogram
+from engine.tracking.background import MEASURE, Background
 from engine.tracking.confidence import (
     TRACKING_FROM,
     calibrated,
@@ -68,6 +69,7 @@ from engine.tracking.reacquisition import search_reach, search_shape
 from engine.tracking.refinement import Refinement, refine
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
+from engine.tracking.shared import SharedMotion
 from engine.tracking.stages import (
     AppearanceModel,
     BoundaryCues,
@@ -230,6 +232,11 @@ class Tracker:
         return self._nodes.copy()
 
     @property
+    def previous_frame(self) -> NDArray[np.uint8] | None:
+        """The grey frame the contour is on (None before the first frame)."""
+        return self._previous
+
+    @property
     def started(self) -> bool:
         """Whether a frame was seen: the next one is tracked (not taken as the first)."""
         return self._previous is not None
@@ -268,6 +275,7 @@ class Tracker:
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
         covered: NDArray[np.bool_] | None = None,
+        shared: SharedMotion | None = None,
     ) -> TrackResult:
         """:meth:`step` on a frame already checked and converted (shared by several trackers).
 
@@ -275,6 +283,9 @@ class Tracker:
         contiguous BGR (or grey) image and its grey version.  ``covered`` (H x W
         bool), from :class:`~engine.tracking.ObjectsTracker`: the pixels other
         objects in front of this one hide (:mod:`engine.tracking.covering`).
+        ``shared``, from it too: the background's motion and the dense flow measured
+        once over the whole frame (:mod:`engine.tracking.shared`), used when measured
+        between this tracker's previous frame and ``grey``.
 
         Raises
         ------
@@ -301,35 +312,39 @@ class Tracker:
             )
         if covered is not None and not covered.any():
             covered = None  # nothing in front: exactly as a tracker alone
+        if shared is not None and not shared.applies_to(self._previous, grey):
+            shared = None
         with _repeatable_opencv():
-            return self._step(image, grey, covered)
+            return self._step(image, grey, covered, shared)
 
     def _step(
         self,
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
         covered: NDArray[np.bool_] | None = None,
+        shared: SharedMotion | None = None,
     ) -> TrackResult:
         self.frame_index += 1
         if min(grey.shape) < MIN_SIDE:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
             return self._start(image, grey)
-        # covered: where the objects in front were and are (the motion reads it on the
-        # previous frame, the cue maps on this one); given only to a motion model in a crowd
-        hidden = {} if covered is None else {"covered": covered}
+        # a session's extras (covered: where the objects in front were and are, read by
+        # the motion on the previous frame and by the cue maps on this one; shared: the
+        # whole frame's motion) reach a motion model only there
+        crowd: dict[str, Any] = {"covered": covered, "shared": shared}
         prediction = self.motion.predict(
             self._previous,
             grey,
             self._nodes,
             frame_index=self.frame_index,
             object_weight=self.cues.object_weight,
-            **hidden,
+            **{key: value for key, value in crowd.items() if value is not None},
         )
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
         memory = self._memory
         hold = memory.hold
-        attempt = self._attempt(image, grey, prediction, self.cues, hold, covered)
+        attempt = self._attempt(image, grey, prediction, self.cues, hold, covered, shared)
         visible = self._visible(grey)
         share = covered_share(covered, prediction.nodes)
         if attempt.score < SEARCH_BELOW and visible and share < SEARCH_UNLESS_COVERED:
@@ -337,7 +352,7 @@ class Tracker:
             retry = self._search(image, grey, prediction)
             if retry is not None:
                 moved = carry(hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
-                other = self._attempt(image, grey, retry, cues, moved, covered)
+                other = self._attempt(image, grey, retry, cues, moved, covered, shared)
                 margin = attempt.score + REACQUIRE_MARGIN
                 if other.score >= self.options.reacquire_above and other.score > margin:
                     prediction, attempt, self.cues, hold = retry, other, cues, moved
@@ -371,6 +386,7 @@ class Tracker:
         cues: BoundaryCues,
         hold: NDArray[np.float64],
         covered: NDArray[np.bool_] | None = None,
+        shared: SharedMotion | None = None,
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result."""
         maps = cues.maps(image, grey, prediction, self.appearance)
@@ -378,7 +394,8 @@ class Tracker:
         if self.options.motion_contrast and self._previous is not None:
             shape = maps.probability.shape
             args = (maps.origin, shape, self._nodes, prediction.matrix)
-            ratio = motion_ratio(self._previous, grey, *args)
+            background: Background = MEASURE if shared is None else shared.background
+            ratio = motion_ratio(self._previous, grey, *args, background=background)
             if ratio is not None:
                 probability = with_motion(maps.probability, ratio)
                 guide = dataclasses.replace(maps, probability=probability, observed=maps.seen)

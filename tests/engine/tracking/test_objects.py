@@ -132,7 +132,7 @@ def test_malformed_objects_states_are_refused(state: dict[str, object]) -> None:
         ObjectsTracker.from_state(state)
 
 
-def test_the_frame_is_checked_and_converted_once_and_each_object_tracks_as_alone(
+def test_the_frame_is_checked_and_converted_once_and_each_object_tracks_as_well_as_alone(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     import engine.tracking._frames as frames
@@ -155,7 +155,11 @@ def test_the_frame_is_checked_and_converted_once_and_each_object_tracks_as_alone
         results = together.step(frame)
         assert len(calls) == 1  # not once per object
         for k, r in zip(starts, results, strict=True):
-            np.testing.assert_array_equal(r.contours[0], alone[k].step(frame).nodes)
+            # the background's motion and the flow are measured once over the frame, not
+            # around each contour: the same outline, not necessarily to the bit
+            shape = frame.shape[:2]
+            one = contour_to_mask(alone[k].step(frame).nodes, shape)
+            assert mask_iou(contour_to_mask(r.contours[0], shape), one) > 0.97
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,64 @@
+"""What a pair of frames tells every object of a session alike, measured once for all.
+
+A session of several objects (:class:`engine.tracking.ObjectsTracker`) tracks each
+object with its own :class:`~engine.tracking.Tracker`, which measures two things around
+its contour that do not depend on the object: how the background moved (the camera's
+motion, for the figure-ground split of the object's motion and for the motion contrast,
+:mod:`engine.tracking.background`) and the dense optical flow that bends the predicted
+contour (:mod:`engine.tracking.flow`).  With several objects, both are measured once over
+the whole frame (the background's corners sought outside every object's silhouette) and
+read by every tracker: a whole 640 x 480 frame costs about what two objects' crops did.
+A tracker alone measures around its contour, as it was tuned.
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.tracking.background import frame_background
+from engine.tracking.flow import FlowField, dense_flow
+from engine.tracking.motion import FramePair
+
+__all__ = ["SharedMotion"]
+
+
+@dataclass(frozen=True, slots=True)
+class SharedMotion:
+    """The background's motion and the dense flow between two whole grey frames.
+
+    Attributes
+    ----------
+    previous, current : numpy.ndarray
+        The grey frames (H x W uint8) they were measured between.
+    background : numpy.ndarray or None
+        2 x 3 similarity of the background, frame ``[x, y, 1]`` of ``previous``
+        to ``current``; None when the background is too flat (or too hidden) to tell.
+    flow : FlowField or None
+        Dense optical flow over the whole frame at half resolution (None for a
+        frame under 4 pixels).
+    """
+
+    previous: NDArray[np.uint8]
+    current: NDArray[np.uint8]
+    background: NDArray[np.float64] | None
+    flow: FlowField | None
+
+    @classmethod
+    def measure(
+        cls, previous: NDArray[np.uint8], current: NDArray[np.uint8], excluded: NDArray[np.bool_]
+    ) -> SharedMotion:
+        """Measure both between ``previous`` and ``current``, the ``excluded`` pixels (H x W
+        bool: the objects' silhouettes in ``previous``) left out of the background's fit."""
+        background = frame_background(previous, current, excluded)
+        return cls(previous, current, background, dense_flow(FramePair.whole(previous, current)))
+
+    def applies_to(self, previous: NDArray[np.uint8] | None, current: NDArray[np.uint8]) -> bool:
+        """Whether these were measured between ``previous`` and ``current`` (the same
+        arrays, or after a restored state, equal ones)."""
+        if previous is None or current is not self.current:
+            return False
+        return previous is self.previous or np.array_equal(previous, self.previous)
