@@ -103,8 +103,10 @@ def render(results: dict[str, Any], seconds: float) -> str:
         )
     lines += [
         "",
-        "Each object is its own tracker: a frame costs about the sum of the objects' costs,"
-        " and two threads gain little (the trackers hold the GIL for much of their time).",
+        "Each object is its own tracker; the background's motion and the dense flow are"
+        " measured once over the whole frame (`engine.tracking.shared`), the rest of an"
+        " object's work is around its own contour.  Two threads gain little or nothing: the"
+        " trackers hold the GIL for much of their time.",
         "Object 4 passes behind object 5 (up to about 80 % hidden): told what is in front"
         " (`engine.tracking.covering`), it keeps its whole outline under it.",
         "",
