@@ -30,7 +30,7 @@ from engine.geometry import contour_to_mask
 from engine.tracking.confidence import Status
 from engine.tracking.covering import Silhouette, fronts
 from engine.tracking.pieces import PiecesTracker
-from engine.tracking.shared import SharedMotion
+from engine.tracking.shared import Crowd, SharedMotion
 from engine.tracking.tracker import Tracker
 
 __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
@@ -205,7 +205,7 @@ class ObjectsTracker:
         """Track the objects of ``wave`` (on the pool of threads when there is one)."""
 
         def one(key: Hashable) -> Any:
-            return self.trackers[key].step_prepared(image, grey, covers[key], shared)
+            return self.trackers[key].step_prepared(image, grey, Crowd(covers[key], shared))
 
         if self.workers > 1 and len(wave) > 1:
             if self._pool is None:

@@ -22,7 +22,7 @@ from engine.geometry import polygon_area
 from engine.tracking._frames import as_frame
 from engine.tracking.confidence import Status, status_of
 from engine.tracking.result import TrackResult
-from engine.tracking.shared import SharedMotion
+from engine.tracking.shared import Crowd
 from engine.tracking.tracker import Tracker
 
 __all__ = ["PiecesResult", "PiecesTracker"]
@@ -102,12 +102,11 @@ class PiecesTracker:
         self,
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
-        covered: NDArray[np.bool_] | None = None,
-        shared: SharedMotion | None = None,
+        crowd: Crowd | None = None,
     ) -> PiecesResult:
         """:meth:`step` on a frame checked and converted once (:meth:`Tracker.step_prepared`,
-        ``covered`` and ``shared`` as there)."""
-        pieces = [t.step_prepared(image, grey, covered, shared) for t in self.trackers]
+        ``crowd`` as there)."""
+        pieces = [t.step_prepared(image, grey, crowd) for t in self.trackers]
         weights = np.array([abs(polygon_area(p.nodes)) for p in pieces]) + 1.0
         confidence = float(np.dot(weights, [p.confidence for p in pieces]) / weights.sum())
         return PiecesResult([p.nodes for p in pieces], confidence, status_of(confidence), pieces)

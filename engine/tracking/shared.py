@@ -23,7 +23,7 @@ from engine.tracking.background import frame_background
 from engine.tracking.flow import FlowField, dense_flow
 from engine.tracking.motion import FramePair
 
-__all__ = ["SharedMotion"]
+__all__ = ["Crowd", "SharedMotion"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,3 +62,33 @@ class SharedMotion:
         if previous is None or current is not self.current:
             return False
         return previous is self.previous or np.array_equal(previous, self.previous)
+
+
+@dataclass(frozen=True, slots=True)
+class Crowd:
+    """What the other objects of a session tell one tracker about a frame.
+
+    Given by :class:`engine.tracking.ObjectsTracker` to each object's
+    :meth:`engine.tracking.Tracker.step_prepared`.
+
+    Attributes
+    ----------
+    covered : numpy.ndarray or None
+        H x W bool: the pixels the objects in front of this one hide, where they
+        were in the last frame and are in this one (:mod:`engine.tracking.covering`).
+    shared : SharedMotion or None
+        The whole frame's background motion and flow.
+    """
+
+    covered: NDArray[np.bool_] | None = None
+    shared: SharedMotion | None = None
+
+    def motion_keywords(self) -> dict[str, NDArray[np.bool_] | SharedMotion]:
+        """The keywords a motion model is given (only those set: a model that takes
+        neither still works alone)."""
+        found: dict[str, NDArray[np.bool_] | SharedMotion] = {}
+        if self.covered is not None:
+            found["covered"] = self.covered
+        if self.shared is not None:
+            found["shared"] = self.shared
+        return found

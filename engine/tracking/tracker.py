@@ -69,7 +69,7 @@ from engine.tracking.reacquisition import search_reach, search_shape
 from engine.tracking.refinement import Refinement, refine
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
-from engine.tracking.shared import SharedMotion
+from engine.tracking.shared import Crowd
 from engine.tracking.stages import (
     AppearanceModel,
     BoundaryCues,
@@ -274,24 +274,22 @@ class Tracker:
         self,
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
-        covered: NDArray[np.bool_] | None = None,
-        shared: SharedMotion | None = None,
+        crowd: Crowd | None = None,
     ) -> TrackResult:
         """:meth:`step` on a frame already checked and converted (shared by several trackers).
 
         ``image, grey`` as :func:`engine.tracking._frames.as_frame` returns them: the
-        contiguous BGR (or grey) image and its grey version.  ``covered`` (H x W
-        bool), from :class:`~engine.tracking.ObjectsTracker`: the pixels other
-        objects in front of this one hide (:mod:`engine.tracking.covering`).
-        ``shared``, from it too: the background's motion and the dense flow measured
-        once over the whole frame (:mod:`engine.tracking.shared`), used when measured
-        between this tracker's previous frame and ``grey``.
+        contiguous BGR (or grey) image and its grey version.  ``crowd``, from
+        :class:`~engine.tracking.ObjectsTracker`: the pixels other objects in front of
+        this one hide (:mod:`engine.tracking.covering`) and the background's motion
+        and dense flow measured once over the whole frame (:mod:`engine.tracking.shared`;
+        used when measured between this tracker's previous frame and ``grey``).
 
         Raises
         ------
         ValueError
             If they are not uint8, ``grey`` is not H x W, ``image`` is not that
-            H x W (x 3), or ``covered`` is not H x W bool.
+            H x W (x 3), or the crowd's ``covered`` is not H x W bool.
         """
         if (
             image.dtype != np.uint8
@@ -305,6 +303,8 @@ class Tracker:
                 "step_prepared takes a uint8 H x W (x 3) image and its H x W grey version; "
                 f"got {image.dtype} {image.shape} and {grey.dtype} {grey.shape}"
             )
+        crowd = crowd or Crowd()
+        covered, shared = crowd.covered, crowd.shared
         if covered is not None and (covered.dtype != np.bool_ or covered.shape != grey.shape):
             raise ValueError(
                 f"covered must be a bool mask of the frame's size {grey.shape}; "
@@ -315,44 +315,41 @@ class Tracker:
         if shared is not None and not shared.applies_to(self._previous, grey):
             shared = None
         with _repeatable_opencv():
-            return self._step(image, grey, covered, shared)
+            return self._step(image, grey, Crowd(covered, shared))
 
     def _step(
         self,
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
-        covered: NDArray[np.bool_] | None = None,
-        shared: SharedMotion | None = None,
+        crowd: Crowd,
     ) -> TrackResult:
         self.frame_index += 1
         if min(grey.shape) < MIN_SIDE:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
             return self._start(image, grey)
-        # a session's extras (covered: where the objects in front were and are, read by
-        # the motion on the previous frame and by the cue maps on this one; shared: the
-        # whole frame's motion) reach a motion model only there
-        crowd: dict[str, Any] = {"covered": covered, "shared": shared}
+        # the crowd's covered pixels: read by the motion on the previous frame and by
+        # the cue maps on this one (the objects in front, where they were and are)
         prediction = self.motion.predict(
             self._previous,
             grey,
             self._nodes,
             frame_index=self.frame_index,
             object_weight=self.cues.object_weight,
-            **{key: value for key, value in crowd.items() if value is not None},
+            **crowd.motion_keywords(),
         )
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
         memory = self._memory
         hold = memory.hold
-        attempt = self._attempt(image, grey, prediction, self.cues, hold, covered, shared)
+        attempt = self._attempt(image, grey, prediction, self.cues, hold, crowd)
         visible = self._visible(grey)
-        share = covered_share(covered, prediction.nodes)
+        share = covered_share(crowd.covered, prediction.nodes)
         if attempt.score < SEARCH_BELOW and visible and share < SEARCH_UNLESS_COVERED:
             memory.misses += 1
             retry = self._search(image, grey, prediction)
             if retry is not None:
                 moved = carry(hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
-                other = self._attempt(image, grey, retry, cues, moved, covered, shared)
+                other = self._attempt(image, grey, retry, cues, moved, crowd)
                 margin = attempt.score + REACQUIRE_MARGIN
                 if other.score >= self.options.reacquire_above and other.score > margin:
                     prediction, attempt, self.cues, hold = retry, other, cues, moved
@@ -385,8 +382,7 @@ class Tracker:
         prediction: Prediction,
         cues: BoundaryCues,
         hold: NDArray[np.float64],
-        covered: NDArray[np.bool_] | None = None,
-        shared: SharedMotion | None = None,
+        crowd: Crowd,
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result."""
         maps = cues.maps(image, grey, prediction, self.appearance)
@@ -394,13 +390,14 @@ class Tracker:
         if self.options.motion_contrast and self._previous is not None:
             shape = maps.probability.shape
             args = (maps.origin, shape, self._nodes, prediction.matrix)
+            shared = crowd.shared
             background: Background = MEASURE if shared is None else shared.background
             ratio = motion_ratio(self._previous, grey, *args, background=background)
             if ratio is not None:
                 probability = with_motion(maps.probability, ratio)
                 guide = dataclasses.replace(maps, probability=probability, observed=maps.seen)
                 maps = dataclasses.replace(maps, motion=ratio)
-        guide, maps = cover_maps(guide, covered), cover_maps(maps, covered)
+        guide, maps = cover_maps(guide, crowd.covered), cover_maps(maps, crowd.covered)
         refinement = refine(
             guide,
             grey.shape,
@@ -411,7 +408,7 @@ class Tracker:
         )
         nodes = refinement.nodes
         # behind another object, the cut's smoothness would pull the unseen part in
-        behind = covered_share(covered, prediction.nodes) >= BEHIND_FROM
+        behind = covered_share(crowd.covered, prediction.nodes) >= BEHIND_FROM
         cut = None if behind else self.segmentation.segment(image, maps, prediction.nodes, nodes)
         if cut is not None and valid_contour(cut, grey.shape, self._nodes):
             nodes = cut

@@ -20,6 +20,7 @@ from engine.tracking.covering import (
 )
 from engine.tracking.maps import Maps
 from engine.tracking.motion import estimate_motion
+from engine.tracking.shared import Crowd
 
 # seed 0 of the crowd: object 5 passes in front of object 4 from frame 14 on, hiding up to
 # about 70 % of it
@@ -130,9 +131,9 @@ def test_a_tracker_told_nothing_is_covered_tracks_as_alone() -> None:
     for frame in CROWD.frames[:4]:
         grey = np.ascontiguousarray(frame.mean(axis=2).astype(np.uint8))
         np.testing.assert_array_equal(
-            a.step_prepared(frame, grey).nodes, b.step_prepared(frame, grey, nothing).nodes
+            a.step_prepared(frame, grey).nodes, b.step_prepared(frame, grey, Crowd(nothing)).nodes
         )
     with pytest.raises(ValueError, match="covered"):
-        a.step_prepared(frame, grey, nothing[:-1])
+        a.step_prepared(frame, grey, Crowd(nothing[:-1]))
     with pytest.raises(ValueError, match="covered"):
-        a.step_prepared(frame, grey, nothing.astype(np.uint8))
+        a.step_prepared(frame, grey, Crowd(nothing.astype(np.uint8)))

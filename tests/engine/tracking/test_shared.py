@@ -7,7 +7,7 @@ import numpy as np
 from engine.geometry import circle_nodes, contour_to_mask
 from engine.testing.crowd import make_crowd
 from engine.tracking import Tracker
-from engine.tracking.shared import SharedMotion
+from engine.tracking.shared import Crowd, SharedMotion
 
 SHIFT = (3, -2)  # the camera pans: everything moves 3 px right and 2 px up
 
@@ -61,5 +61,6 @@ def test_a_tracker_measures_its_own_when_shared_motion_is_of_other_frames() -> N
     stale = SharedMotion.measure(previous, current, excluded)  # other frames entirely
     for frame, g in zip(crowd.frames, grey, strict=True):
         np.testing.assert_array_equal(
-            plain.step_prepared(frame, g).nodes, given.step_prepared(frame, g, None, stale).nodes
+            plain.step_prepared(frame, g).nodes,
+            given.step_prepared(frame, g, Crowd(shared=stale)).nodes,
         )
