@@ -56,6 +56,7 @@ def test_a_grey_label_image_gives_every_object_or_the_one_of_its_label(
     for record in records:
         assert [o["id"] for o in record["objects"]] == [1, 2]
         assert {o["status"] for o in record["objects"]} <= {"tracking", "uncertain", "lost"}
+        assert [o["behind"] for o in record["objects"]] == [[], []]  # apart
     centres = [np.asarray(o["nodes"]).mean(axis=0) for o in records[0]["objects"]]
     np.testing.assert_allclose(centres, [[40, 60], [115, 60]], atol=1)
     written = cv2.imread(str(masks / "000.png"), cv2.IMREAD_UNCHANGED)

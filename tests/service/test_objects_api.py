@@ -60,6 +60,7 @@ def test_a_session_of_objects_snaps_tracks_and_answers_each(client: TestClient) 
     for o in result["objects"]:
         assert o["status"] in {"tracking", "uncertain", "lost"}
         assert 0.0 <= o["confidence"] <= 1.0
+        assert o["behind"] == []  # apart: neither covers the other
     moved = frame(client, sid, (166.0, 122.0)).json()
     assert moved["frame_index"] == 1
     assert iou(moved["objects"][0]["nodes"], (166, 122)) > 0.85
