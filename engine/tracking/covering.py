@@ -33,8 +33,11 @@ from engine.geometry import contour_to_mask
 from engine.tracking.maps import Maps
 
 __all__ = [
+    "KEEP_ORDER",
     "NEUTRAL",
     "RIM",
+    "Order",
+    "RegionProbability",
     "Silhouette",
     "cover_maps",
     "covered_share",
@@ -46,6 +49,10 @@ __all__ = [
 
 NEUTRAL = 0.5
 """p(object) of a covered pixel: the colour there is another object's and says nothing."""
+KEEP_ORDER = 0.1
+"""Two overlapping objects change places only when the shared pixels look at least this
+much more (mean p(object)) like the other one: objects of alike colours keep the order
+found when their overlap began, and the one behind does not alternate frame by frame."""
 RIM = 2
 """Pixels the front object's silhouette is grown by: its anti-aliased rim, whose mixed
 colours and edge belong to it, and the 1-2 pixels its contour may be off."""
@@ -123,17 +130,25 @@ def covered_share(covered: NDArray[np.bool_] | None, nodes: NDArray[np.float64])
 
 
 def in_front(
-    a: NDArray[np.float32], b: NDArray[np.float32], overlap: NDArray[np.bool_]
+    a: NDArray[np.float32],
+    b: NDArray[np.float32],
+    overlap: NDArray[np.bool_],
+    was: bool | None = None,
 ) -> bool | None:
     """Whether object ``a`` is in front of ``b`` where their silhouettes overlap.
 
     ``a`` and ``b`` are their appearance models' p(object) over one region of the
     current frame and ``overlap`` the region's pixels both silhouettes claim: the
-    object those pixels look more like shows there.  None when the overlap is empty.
+    object those pixels look more like shows there.  ``was``: the answer of the last
+    frame, kept unless the pixels look at least :data:`KEEP_ORDER` more like the other
+    object.  None when the overlap is empty.
     """
     if not overlap.any():
         return None
-    return float(a[overlap].mean()) >= float(b[overlap].mean())
+    lead = float(a[overlap].mean()) - float(b[overlap].mean())
+    if was is not None and abs(lead) < KEEP_ORDER:
+        return was
+    return lead >= 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -197,14 +212,24 @@ RegionProbability = Callable[[Hashable, tuple[int, int, int, int]], NDArray[np.f
 """An object's appearance p(object) over a box ``(x0, y0, x1, y1)`` of the current frame."""
 
 
-def fronts(
-    silhouettes: Mapping[Hashable, Silhouette], probability: RegionProbability
-) -> dict[Hashable, list[Hashable]]:
-    """For each object, the objects in front of it (:func:`in_front`), in the mapping's order.
+Order = dict[frozenset[Hashable], Hashable]
+"""Each overlapping pair of objects (their ids) -> the id of the one in front."""
 
-    Every pair of overlapping silhouettes is decided once, from the pixels both claim.
+
+def fronts(
+    silhouettes: Mapping[Hashable, Silhouette],
+    probability: RegionProbability,
+    order: Order | None = None,
+) -> tuple[dict[Hashable, list[Hashable]], Order]:
+    """For each object, the objects in front of it (:func:`in_front`), in the mapping's
+    order; and the order of each overlapping pair, for the next frame.
+
+    Every pair of overlapping silhouettes is decided once, from the pixels both claim,
+    keeping ``order`` (the last frame's) unless the pixels clearly say otherwise; a pair
+    that no longer overlaps is forgotten.
     """
     found: dict[Hashable, list[Hashable]] = {key: [] for key in silhouettes}
+    decided: Order = {}
     keys = list(silhouettes)
     for i, a in enumerate(keys):
         for b in keys[i + 1 :]:
@@ -212,8 +237,11 @@ def fronts(
             if shared is None:
                 continue
             box, both = shared
-            if in_front(probability(a, box), probability(b, box), both):
-                found[b].append(a)
-            else:
-                found[a].append(b)
-    return found
+            pair = frozenset((a, b))
+            before = (order or {}).get(pair)
+            was = None if before is None else before == a
+            a_first = in_front(probability(a, box), probability(b, box), both, was)
+            front, back = (a, b) if a_first else (b, a)
+            found[back].append(front)
+            decided[pair] = front
+    return found, decided

@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from engine.geometry import contour_to_mask
 from engine.tracking.confidence import Status
-from engine.tracking.covering import Silhouette, fronts
+from engine.tracking.covering import Order, Silhouette, fronts
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedMotion
 from engine.tracking.tracker import Tracker
@@ -102,6 +102,7 @@ class ObjectsTracker:
         # the last grey frame, for the whole-frame measurements (engine.tracking.shared)
         self._previous: NDArray[np.uint8] | None = None
         self._pool: ThreadPoolExecutor | None = None  # made on first use, with workers > 1
+        self._order: Order = {}  # which of two overlapping objects is in front
         for key, outline in (objects or {}).items():
             self.add(key, outline)
 
@@ -158,7 +159,7 @@ class ObjectsTracker:
             x0, y0, x1, y1 = box
             return _probability(self.trackers[key], image[y0:y1, x0:x1])
 
-        in_front = fronts(silhouettes, probability)
+        in_front, self._order = fronts(silhouettes, probability, self._order)
         shared = self._shared(grey, silhouettes)
         self._previous = grey
         results: dict[Hashable, Any] = {}
@@ -238,12 +239,15 @@ class ObjectsTracker:
         return covered
 
     def to_state(self, **kwargs: Any) -> dict[str, Any]:
-        """``{"kind": "objects", "max_objects", "objects": [[id, state], ...]}``, JSON-able
-        for JSON-able ids (``kwargs`` as :meth:`Tracker.to_state`'s)."""
+        """``{"kind": "objects", "max_objects", "objects": [[id, state], ...], "in_front":
+        [[front id, back id], ...]}``, JSON-able for JSON-able ids (``kwargs`` as
+        :meth:`Tracker.to_state`'s)."""
+        pairs = [[front, next(iter(pair - {front}))] for pair, front in self._order.items()]
         return {
             "kind": KIND,
             "max_objects": self.max_objects,
             "objects": [[key, t.to_state(**kwargs)] for key, t in self.trackers.items()],
+            "in_front": pairs,
         }
 
     @classmethod
@@ -268,6 +272,7 @@ class ObjectsTracker:
         # the frame they go on from (each tracker checks it is its own)
         frames = [_previous_frame(t) for t in restored.trackers.values()]
         restored._previous = next((f for f in frames if f is not None), None)
+        restored._order = _order_of(state.get("in_front", []), restored.trackers)
         return restored
 
 
@@ -276,6 +281,21 @@ def _started(tracker: Tracker | PiecesTracker) -> bool:
     if isinstance(tracker, PiecesTracker):
         return all(t.started for t in tracker.trackers)
     return tracker.started
+
+
+def _order_of(pairs: object, known: Mapping[Hashable, object]) -> Order:
+    """The ``"in_front"`` pairs of a state, checked against the objects' ids."""
+    if not isinstance(pairs, list):
+        raise ValueError("an objects tracker state's in_front must be a list of id pairs")
+    order: Order = {}
+    for pair in pairs:
+        if not isinstance(pair, list | tuple) or len(pair) != 2:
+            raise ValueError("each in_front pair of an objects tracker state must be [front, back]")
+        front, back = (tuple(k) if isinstance(k, list) else k for k in pair)
+        if front not in known or back not in known or front == back:
+            raise ValueError(f"in_front pair {pair!r}: not two of the state's objects")
+        order[frozenset((front, back))] = front
+    return order
 
 
 def _previous_frame(tracker: Tracker | PiecesTracker) -> NDArray[np.uint8] | None:

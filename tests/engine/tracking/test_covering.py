@@ -12,6 +12,7 @@ from engine.testing.crowd import make_crowd
 from engine.tracking import ObjectsTracker, Tracker
 from engine.tracking.covering import (
     NEUTRAL,
+    RegionProbability,
     Silhouette,
     cover_maps,
     covered_share,
@@ -76,16 +77,27 @@ def test_fronts_follow_the_colours_of_the_overlap() -> None:
     assert far is not None
     assert far.overlap(left) is None
 
-    def red_wins(key: object, box: tuple[int, int, int, int]) -> np.ndarray:
-        x0, y0, x1, y1 = box
-        return np.full((y1 - y0, x1 - x0), 0.9 if key == "right" else 0.2, np.float32)
+    def looks(right: float, left: float) -> RegionProbability:
+        def probability(key: Hashable, box: tuple[int, int, int, int]) -> np.ndarray:
+            x0, y0, x1, y1 = box
+            return np.full((y1 - y0, x1 - x0), right if key == "right" else left, np.float32)
 
-    found = fronts({"left": left, "right": right, "far": far}, red_wins)
+        return probability
+
+    objects: dict[Hashable, Silhouette] = {"left": left, "right": right, "far": far}
+    found, order = fronts(objects, looks(right=0.9, left=0.2))
     assert found == {"left": ["right"], "right": [], "far": []}
-    assert (
-        in_front(np.zeros((2, 2), np.float32), np.ones((2, 2), np.float32), np.zeros((2, 2), bool))
-        is None
-    )
+    assert order == {frozenset(("left", "right")): "right"}
+    # alike colours: the order found when the overlap began is kept ...
+    assert fronts(objects, looks(right=0.5, left=0.55), order)[1] == order
+    assert fronts(objects, looks(right=0.5, left=0.55))[0]["right"] == ["left"]  # (afresh)
+    # ... until the shared pixels clearly look like the other object
+    assert fronts(objects, looks(right=0.3, left=0.8), order)[0]["right"] == ["left"]
+    # a pair apart is forgotten
+    apart: dict[Hashable, Silhouette] = {"left": left, "far": far}
+    assert fronts(apart, looks(right=0.9, left=0.2), order)[1] == {}
+    nothing = np.zeros((2, 2), bool)
+    assert in_front(np.zeros((2, 2), np.float32), np.ones((2, 2), np.float32), nothing) is None
 
 
 @pytest.mark.parametrize("edge_step", [1, 2])
@@ -137,3 +149,20 @@ def test_a_tracker_told_nothing_is_covered_tracks_as_alone() -> None:
         a.step_prepared(frame, grey, Crowd(nothing[:-1]))
     with pytest.raises(ValueError, match="covered"):
         a.step_prepared(frame, grey, Crowd(nothing.astype(np.uint8)))
+
+
+def test_a_session_resumes_exactly_mid_overlap() -> None:
+    import json
+
+    starts = {k: mask_to_contour(CROWD.masks[k][0], 64) for k in (BACK, FRONT)}
+    tracker = ObjectsTracker(starts)
+    for frame in CROWD.frames[:18]:  # the two overlap from frame 14 on
+        tracker.step(frame)
+    state = json.loads(json.dumps(tracker.to_state()))
+    assert state["in_front"] == [[FRONT, BACK]]
+    resumed = ObjectsTracker.from_state(state)
+    for frame in CROWD.frames[18:22]:
+        a, b = tracker.step(frame), resumed.step(frame)
+        assert [r.behind for r in a] == [r.behind for r in b] == [(FRONT,), ()]
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x.contours[0], y.contours[0])

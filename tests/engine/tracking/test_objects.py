@@ -125,7 +125,15 @@ def test_an_objects_state_resumes_exactly() -> None:
 
 @pytest.mark.parametrize(
     "state",
-    [{}, {"kind": "objects"}, {"kind": "objects", "objects": [[1]]}, {"kind": "pieces"}],
+    [
+        {},
+        {"kind": "objects"},
+        {"kind": "objects", "objects": [[1]]},
+        {"kind": "pieces"},
+        {"kind": "objects", "objects": [], "in_front": [[1, 2]]},
+        {"kind": "objects", "objects": [], "in_front": {"1": 2}},
+        {"kind": "objects", "objects": [], "in_front": [[1]]},
+    ],
 )
 def test_malformed_objects_states_are_refused(state: dict[str, object]) -> None:
     with pytest.raises(ValueError, match="object"):
