@@ -5,7 +5,10 @@ Each object is a :class:`Tracker` (one closed contour) or a
 user's correction: the object learns anew from it on the next frame) and
 removed between frames.  The frame is checked and converted once; the
 objects' own work then runs one after the other, or on a pool of threads
-(``workers``: OpenCV and the compiled kernels release the GIL).
+(``workers``; OpenCV and the compiled kernels release the GIL, but the trackers
+hold it for much of their time, so a second thread gains little).  With two
+objects or more, the background's motion and the dense flow are measured once
+over the whole frame (:mod:`engine.tracking.shared`).
 
 Where two objects overlap, the one in front is read from the frame: over the
 pixels both silhouettes claim, the object whose appearance model finds them
@@ -127,10 +130,16 @@ class ObjectsTracker:
         if key not in self.trackers:
             raise KeyError(key)
         self.trackers[key] = self._make(outline)
+        self._forget_order(key)
 
     def remove(self, key: Hashable) -> None:
         """Stop following an object (KeyError if unknown)."""
         del self.trackers[key]
+        self._forget_order(key)
+
+    def _forget_order(self, key: Hashable) -> None:
+        """Drop the overlap orders ``key`` had: it starts anew, or is gone."""
+        self._order = {pair: front for pair, front in self._order.items() if key not in pair}
 
     def contours(self, key: Hashable) -> list[NDArray[np.float64]]:
         """Object ``key``'s current contour, or one per piece (KeyError if unknown)."""
@@ -177,9 +186,8 @@ class ObjectsTracker:
         out = []
         for key in self.trackers:
             r = results[key]
-            contours = list(r.contours) if hasattr(r, "contours") else [r.nodes]
             behind = tuple(in_front.get(key, ()))
-            out.append(ObjectResult(key, contours, float(r.confidence), r.status, behind))
+            out.append(ObjectResult(key, _contours(r), float(r.confidence), r.status, behind))
         return out
 
     def _shared(
@@ -230,10 +238,7 @@ class ObjectsTracker:
         for other in front:
             silhouettes[other].paint(covered)
             if other in results:
-                r = results[other]
-                now = Silhouette.of(
-                    list(r.contours) if hasattr(r, "contours") else [r.nodes], shape
-                )
+                now = Silhouette.of(_contours(results[other]), shape)
                 if now is not None:
                     now.paint(covered)
         return covered
@@ -274,6 +279,11 @@ class ObjectsTracker:
         restored._previous = next((f for f in frames if f is not None), None)
         restored._order = _order_of(state.get("in_front", []), restored.trackers)
         return restored
+
+
+def _contours(result: Any) -> list[NDArray[np.float64]]:
+    """A tracker's or a pieces tracker's result as its list of contours."""
+    return list(result.contours) if hasattr(result, "contours") else [result.nodes]
 
 
 def _started(tracker: Tracker | PiecesTracker) -> bool:

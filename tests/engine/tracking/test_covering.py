@@ -166,3 +166,7 @@ def test_a_session_resumes_exactly_mid_overlap() -> None:
         assert [r.behind for r in a] == [r.behind for r in b] == [(FRONT,), ()]
         for x, y in zip(a, b, strict=True):
             np.testing.assert_array_equal(x.contours[0], y.contours[0])
+    # an object removed (or corrected) takes its overlap orders with it
+    tracker.remove(FRONT)
+    assert tracker.to_state()["in_front"] == []
+    ObjectsTracker.from_state(json.loads(json.dumps(tracker.to_state())))
