@@ -104,7 +104,9 @@ class ObjectsTracker:
         self.trackers: dict[Hashable, Tracker | PiecesTracker] = {}
         # the last grey frame, for the whole-frame measurements (engine.tracking.shared)
         self._previous: NDArray[np.uint8] | None = None
-        self._pool: ThreadPoolExecutor | None = None  # made on first use, with workers > 1
+        # made on first use with workers > 1 and kept (a pool a frame cost more than the
+        # second thread gave); its idle threads end with the tracker, or with close()
+        self._pool: ThreadPoolExecutor | None = None
         self._order: Order = {}  # which of two overlapping objects is in front
         for key, outline in (objects or {}).items():
             self.add(key, outline)
@@ -136,6 +138,12 @@ class ObjectsTracker:
         """Stop following an object (KeyError if unknown)."""
         del self.trackers[key]
         self._forget_order(key)
+
+    def close(self) -> None:
+        """End the pool of threads now (it is made again should a frame need it)."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
 
     def _forget_order(self, key: Hashable) -> None:
         """Drop the overlap orders ``key`` had: it starts anew, or is gone."""

@@ -38,6 +38,9 @@ def test_eight_objects_keep_their_ids_and_their_outlines(workers: int) -> None:
             ious[k, t] = mask_iou(
                 contour_to_mask(r.contours[0], frame.shape[:2]), CROWD.masks[k][t]
             )
+    tracker.close()  # ends the pool of threads (none with one worker) ...
+    tracker.close()
+    assert len(tracker.step(CROWD.frames[-1])) == COUNT  # ... made again when needed
     mean = ious[:, 1:].mean(axis=1)
     # every object keeps its own identity: its track overlaps its own mask, not a neighbour's
     assert (ious[:, -1] > 0.5).all()
