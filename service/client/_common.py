@@ -148,7 +148,8 @@ class FrameResult:
     objects : tuple of dict
         A session of several objects: each one's ``{"id", "nodes"`` (or
         ``"contours"``, a list of them, for an object in pieces; read-only
-        arrays)``, "confidence", "status"}``; empty otherwise.
+        arrays)``, "confidence", "status", "behind"}`` (``"behind"``: the ids of the
+        objects in front of it where they overlap); empty otherwise.
     """
 
     frame_index: int
