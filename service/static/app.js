@@ -66,7 +66,7 @@
     results: 0, // frame results received
     dropped: 0, // sum of the results' "dropped"
     lastNodes: null, // [[x, y], ...] of the latest result (its first object)
-    lastObjects: null, // [{id, nodes | contours, status, confidence}, ...] of the latest result
+    lastObjects: null, // [{id, nodes | contours, status, confidence, behind}, ...], latest result
     outlines: 0, // outlines drawn, not yet tracked
     pendingObjects: 0, // objects sent mid-stream, not yet acknowledged
     lastResult: null,
@@ -594,7 +594,9 @@
     const k = videoPerCss(); // keep line widths constant on screen
     ctx.lineJoin = "round";
     if (session) {
-      const tracked = demo.lastObjects || [];
+      // those behind others first, so that the objects in front are drawn over them
+      const depth = (o) => (o.behind ? o.behind.length : 0);
+      const tracked = [...(demo.lastObjects || [])].sort((a, b) => depth(b) - depth(a));
       for (const o of tracked) {
         for (const piece of o.contours || [o.nodes]) {
           tracePath(ctx, piece, true);
@@ -617,7 +619,8 @@
     const rows = session
       ? (demo.lastObjects || []).map((o) => {
           const c = typeof o.confidence === "number" ? ` ${o.confidence.toFixed(2)}` : "";
-          return [colourOf(o.id), `#${o.id} ${o.status || "waiting"}${c}`, o.id];
+          const under = o.behind && o.behind.length ? `, behind #${o.behind.join(", #")}` : "";
+          return [colourOf(o.id), `#${o.id} ${o.status || "waiting"}${c}${under}`, o.id];
         })
       : outlines.map((o, i) => [nextColour(i), `${o.kind}, to track`, String(i)]);
     pending.forEach((o, i) => rows.push([nextColour(i), `${o.kind}, joining`, null]));
