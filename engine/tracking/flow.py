@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from engine.tracking.motion import MIN_CROP, FramePair
 
-__all__ = ["DEPTH", "FlowField", "dense_flow", "node_flow"]
+__all__ = ["DEPTH", "FlowField", "dense_flow", "node_flow", "read_flow"]
 
 DIS_MIN_SIDE = 32  # smaller (or very flat) inputs crash OpenCV's DIS
 CONTEXT = 48
@@ -114,6 +114,17 @@ def node_flow(
         (N, 2) displacement of each node from ``previous`` to ``current``.
     """
     field = dense_flow(FramePair.around(previous, current, nodes, margin=margin))
+    return read_flow(field, nodes, inward, depth=depth)
+
+
+def read_flow(
+    field: FlowField | None,
+    nodes: NDArray[np.float64],
+    inward: NDArray[np.float64],
+    *,
+    depth: float = DEPTH,
+) -> NDArray[np.float64]:
+    """``field`` read ``depth`` pixels inside each node (zero without a field)."""
     if field is None:
         return np.zeros_like(nodes)
     return field.at(nodes + depth * inward)

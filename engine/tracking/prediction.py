@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from engine.geometry import outward_normals
 from engine.physics import deform
 from engine.tracking.background import MEASURE
-from engine.tracking.flow import DEPTH, node_flow
+from engine.tracking.flow import DEPTH, node_flow, read_flow
 from engine.tracking.motion import Motion, estimate_motion
 from engine.tracking.shared import SharedMotion
 from engine.tracking.stages import Grey, ObjectWeight, Prediction, check_kind
@@ -132,10 +132,8 @@ class FlowMotion:
             inward = -outward_normals(nodes)
             if shared is None:
                 flow = node_flow(previous, current, nodes, inward)
-            elif shared.flow is None:
-                flow = np.zeros_like(nodes)
             else:
-                flow = shared.flow.at(nodes + DEPTH * inward)
+                flow = read_flow(shared.flow, nodes, inward)
             residual = (nodes + flow) - predicted
             w = object_weight(nodes + DEPTH * inward)
             num = deform(w[:, None] * residual, self.flow_stiffness)
