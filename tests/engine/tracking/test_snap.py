@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -81,6 +84,71 @@ def test_a_large_object_at_480p_is_solved_on_the_shrunk_region() -> None:
     truth = scene.mask((420.0, 240.0))
     found = snap(scene.frame((420.0, 240.0)), tight_box(truth))
     assert mask_iou(found, truth) > 0.85
+
+
+def stick_scene() -> tuple[U8, U8]:
+    """A red disc with a 3 px stick reaching the right of its box, on green (small-scale sizes)."""
+    rng = np.random.default_rng(3)
+    frame = np.clip(rng.normal((150, 170, 90), 12, (120, 200, 3)), 0, 255).astype(np.uint8)
+    truth = np.zeros((120, 200), np.uint8)
+    cv2.circle(truth, (60, 60), 25, 255, -1)
+    cv2.rectangle(truth, (80, 59), (150, 61), 255, -1)
+    red = np.clip(rng.normal((60, 50, 170), 12, frame.shape), 0, 255).astype(np.uint8)
+    frame[truth > 0] = red[truth > 0]
+    return frame, truth
+
+
+def test_the_tightness_prior_brings_back_a_thin_end_the_cut_dropped() -> None:
+    """Every column of the box meets the object: the stick's columns get a pin each."""
+    from engine.tracking.snap import _grabcut, _tighten
+
+    frame, truth = stick_scene()
+    x0, y0, x1, y1 = tight_box(truth)
+    box = np.zeros(truth.shape, np.uint8)
+    box[y0:y1, x0:x1] = 1
+    cut = _grabcut(frame, np.where(box > 0, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8))
+    assert cut is not None
+    stick = truth.copy()
+    stick[:, :90] = 0
+    dropped = replace(cut, labels=np.where(stick > 0, cv2.GC_PR_BGD, cut.labels).astype(np.uint8))
+    assert not dropped.found[stick > 0].any()
+    found = _tighten(frame, box, dropped)
+    assert found[stick > 0].mean() > 0.9
+    assert mask_iou(found, truth) > 0.95
+
+
+def test_the_tightness_prior_pins_nothing_on_the_background_of_a_loose_box(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Rows and columns of a loose box that hold only background colours stay empty."""
+    from engine.tracking import snap as module
+    from engine.tracking.snap import _grabcut, _tighten
+
+    monkeypatch.setattr(module, "STRAY_SHARE", 0.0)  # a pin would stay, as a stray
+
+    frame, truth = stick_scene()
+    x0, y0, x1, y1 = tight_box(truth)
+    box = np.zeros(truth.shape, np.uint8)
+    box[y0 - 15 : y1 + 15, x0 - 20 : x1 + 20] = 1
+    cut = _grabcut(frame, np.where(box > 0, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8))
+    assert cut is not None
+    assert mask_iou(cut.found, truth) > 0.9
+    np.testing.assert_array_equal(_tighten(frame, box, cut), cut.found)
+
+
+def test_strays_are_pins_that_joined_nothing() -> None:
+    from engine.tracking.snap import _without_strays
+
+    before = np.zeros((40, 40), np.uint8)
+    before[5:25, 5:25] = 1
+    after = before.copy()
+    after[30, 30] = 1  # a pin alone: dropped
+    after[5:25, 26:28] = 1  # new, but 2 % of the object: kept
+    after[24:26, 24:26] = 1  # grown onto the old piece: kept
+    kept = _without_strays(after, before)
+    assert kept[30, 30] == 0
+    assert kept[5:25, 26:28].all()
+    assert kept[25, 25] == 1
 
 
 @pytest.mark.parametrize(
