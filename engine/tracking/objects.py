@@ -4,9 +4,12 @@ Each object is a :class:`Tracker` (one closed contour) or a
 :class:`PiecesTracker` (several pieces); objects can be added, replaced (a
 user's correction: the object learns anew from it on the next frame) and
 removed between frames.  The frame is checked and converted once; the
-objects' own work then runs one after the other, or on a pool of threads
+objects' own work then runs one after the other, on a pool of threads
 (``workers``; OpenCV and the compiled kernels release the GIL, but the trackers
-hold it for much of their time, so a second thread gains little).  With two
+hold it for much of their time, so a second thread gains little), or on
+``workers`` processes (``processes=True``: each holds its share of the
+trackers, and a frame reaches them once, through shared memory;
+:mod:`engine.tracking._processes`).  With two
 objects or more, the background's motion and the dense flow are measured once
 over the whole frame (:mod:`engine.tracking.shared`).
 
@@ -30,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from engine.geometry import contour_to_mask
+from engine.tracking._processes import Remote, Workers, probability_of, restore
 from engine.tracking.confidence import Status
 from engine.tracking.covering import Order, Silhouette, fronts
 from engine.tracking.pieces import PiecesTracker
@@ -80,7 +84,12 @@ class ObjectsTracker:
     max_objects : int
         Most objects at once (:data:`MAX_OBJECTS`).
     workers : int
-        Threads the objects are tracked on (1: one after the other).
+        Threads the objects are tracked on (1: one after the other), or
+        processes with ``processes``.
+    processes : bool
+        Track the objects on ``workers`` worker processes (started with the
+        first object, ended by :meth:`close`), each holding its share of the
+        trackers: results are the same, bit for bit, as in this process.
     **options
         :class:`TrackerOptions` fields, for every object.
 
@@ -96,12 +105,14 @@ class ObjectsTracker:
         *,
         max_objects: int = MAX_OBJECTS,
         workers: int = 1,
+        processes: bool = False,
         **options: Any,
     ) -> None:
         if max_objects < 1 or workers < 1:
             raise ValueError("max_objects and workers must be at least 1")
         self.max_objects, self.workers, self.options = max_objects, workers, dict(options)
-        self.trackers: dict[Hashable, Tracker | PiecesTracker] = {}
+        self.trackers: dict[Hashable, Tracker | PiecesTracker | Remote] = {}
+        self._workers = Workers(workers) if processes else None
         # the last grey frame, for the whole-frame measurements (engine.tracking.shared)
         self._previous: NDArray[np.uint8] | None = None
         # made on first use with workers > 1 and kept (a pool a frame cost more than the
@@ -111,13 +122,27 @@ class ObjectsTracker:
         for key, outline in (objects or {}).items():
             self.add(key, outline)
 
-    def _make(self, outline: ArrayLike | Sequence[ArrayLike]) -> Tracker | PiecesTracker:
+    def _make(self, outline: ArrayLike | Sequence[ArrayLike]) -> Tracker | PiecesTracker | Remote:
+        tracker: Tracker | PiecesTracker
         if isinstance(outline, list | tuple) and _is_list_of_contours(outline):
             pieces = list(outline)
             if len(pieces) > 1:
-                return PiecesTracker(pieces, **self.options)
-            return Tracker(pieces[0], **self.options)
-        return Tracker(np.asarray(outline, dtype=np.float64), **self.options)
+                tracker = PiecesTracker(pieces, **self.options)
+            else:
+                tracker = Tracker(pieces[0], **self.options)
+        else:
+            tracker = Tracker(np.asarray(outline, dtype=np.float64), **self.options)
+        return self._held(tracker)
+
+    def _held(self, tracker: Tracker | PiecesTracker) -> Tracker | PiecesTracker | Remote:
+        """``tracker`` itself, or handed to a worker process."""
+        return tracker if self._workers is None else self._workers.place(tracker)
+
+    def _let_go(self, key: Hashable) -> None:
+        """A worker process forgets the tracker of ``key`` (a correction or removal)."""
+        old = self.trackers[key]
+        if isinstance(old, Remote) and self._workers is not None:
+            self._workers.drop(old)
 
     def add(self, key: Hashable, outline: ArrayLike | Sequence[ArrayLike]) -> None:
         """Follow a new object from the next frame on (ValueError if ``key`` is taken)."""
@@ -131,19 +156,32 @@ class ObjectsTracker:
         """A correction: the object starts anew from ``outline`` on the next frame."""
         if key not in self.trackers:
             raise KeyError(key)
-        self.trackers[key] = self._make(outline)
+        made = self._make(outline)
+        self._let_go(key)
+        self.trackers[key] = made
         self._forget_order(key)
 
     def remove(self, key: Hashable) -> None:
         """Stop following an object (KeyError if unknown)."""
+        if key not in self.trackers:
+            raise KeyError(key)
+        self._let_go(key)
         del self.trackers[key]
         self._forget_order(key)
 
     def close(self) -> None:
-        """End the pool of threads now (it is made again should a frame need it)."""
+        """End the pool of threads now (it is made again should a frame need it), and the
+        worker processes: their objects come back to this process (their states, exactly)
+        and are tracked here from then on."""
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
+        if self._workers is not None:
+            for key, tracker in self.trackers.items():
+                if isinstance(tracker, Remote):
+                    self.trackers[key] = restore(tracker.to_state())
+            self._workers.close()
+            self._workers = None
 
     def _forget_order(self, key: Hashable) -> None:
         """Drop the overlap orders ``key`` had: it starts anew, or is gone."""
@@ -152,6 +190,8 @@ class ObjectsTracker:
     def contours(self, key: Hashable) -> list[NDArray[np.float64]]:
         """Object ``key``'s current contour, or one per piece (KeyError if unknown)."""
         tracker = self.trackers[key]
+        if isinstance(tracker, Remote):
+            return list(tracker.contours)
         return tracker.contours if isinstance(tracker, PiecesTracker) else [tracker.nodes]
 
     def step(self, frame: NDArray[np.uint8]) -> list[ObjectResult]:
@@ -174,10 +214,12 @@ class ObjectsTracker:
 
         def probability(key: Hashable, box: tuple[int, int, int, int]) -> NDArray[np.float32]:
             x0, y0, x1, y1 = box
-            return _probability(self.trackers[key], image[y0:y1, x0:x1])
+            return probability_of(self.trackers[key], image[y0:y1, x0:x1])
 
         in_front, self._order = fronts(silhouettes, probability, self._order)
         shared = self._shared(grey, silhouettes)
+        if self._workers is not None and self.trackers:
+            self._workers.frame(image, grey, shared)
         self._previous = grey
         results: dict[Hashable, Any] = {}
         waiting = list(self.trackers)
@@ -221,8 +263,13 @@ class ObjectsTracker:
     ) -> list[Any]:
         """Track the objects of ``wave`` (on the pool of threads when there is one)."""
 
+        if self._workers is not None:
+            return self._workers.step([(self.trackers[k], covers[k]) for k in wave])
+
         def one(key: Hashable) -> Any:
-            return self.trackers[key].step_prepared(image, grey, Crowd(covers[key], shared))
+            tracker = self.trackers[key]
+            assert not isinstance(tracker, Remote)
+            return tracker.step_prepared(image, grey, Crowd(covers[key], shared))
 
         if self.workers > 1 and len(wave) > 1:
             if self._pool is None:
@@ -264,14 +311,21 @@ class ObjectsTracker:
         }
 
     @classmethod
-    def from_state(cls, state: Mapping[str, Any], *, workers: int = 1) -> ObjectsTracker:
+    def from_state(
+        cls, state: Mapping[str, Any], *, workers: int = 1, processes: bool = False
+    ) -> ObjectsTracker:
         """Rebuild from :meth:`to_state` output; ValueError if malformed."""
         if not isinstance(state, Mapping) or state.get("kind") != KIND:
             raise ValueError("an objects tracker state must be a dict of kind 'objects'")
         entries = state.get("objects")
         if not isinstance(entries, list):
             raise ValueError("an objects tracker state needs a list of objects")
-        restored = cls(max_objects=int(state.get("max_objects", MAX_OBJECTS)), workers=workers)
+        frames: list[NDArray[np.uint8] | None] = []
+        restored = cls(
+            max_objects=int(state.get("max_objects", MAX_OBJECTS)),
+            workers=workers,
+            processes=processes,
+        )
         for entry in entries:
             if not isinstance(entry, list | tuple) or len(entry) != 2:
                 raise ValueError("each object of the state must be [id, state]")
@@ -279,11 +333,10 @@ class ObjectsTracker:
             key = tuple(key) if isinstance(key, list) else key  # JSON turns tuples into lists
             if key in restored.trackers or len(restored.trackers) >= restored.max_objects:
                 raise ValueError(f"object {key!r}: repeated, or one too many")
-            is_pieces = isinstance(inner, Mapping) and inner.get("kind") == "pieces"
-            tracker = PiecesTracker.from_state(inner) if is_pieces else Tracker.from_state(inner)
-            restored.trackers[key] = tracker
+            tracker = restore(inner)
+            frames.append(_previous_frame(tracker))
+            restored.trackers[key] = restored._held(tracker)
         # the frame they go on from (each tracker checks it is its own)
-        frames = [_previous_frame(t) for t in restored.trackers.values()]
         restored._previous = next((f for f in frames if f is not None), None)
         restored._order = _order_of(state.get("in_front", []), restored.trackers)
         return restored
@@ -294,8 +347,10 @@ def _contours(result: Any) -> list[NDArray[np.float64]]:
     return list(result.contours) if hasattr(result, "contours") else [result.nodes]
 
 
-def _started(tracker: Tracker | PiecesTracker) -> bool:
+def _started(tracker: Tracker | PiecesTracker | Remote) -> bool:
     """Whether the tracker has seen a frame (a new object is only placed on this one)."""
+    if isinstance(tracker, Remote):
+        return tracker.started
     if isinstance(tracker, PiecesTracker):
         return all(t.started for t in tracker.trackers)
     return tracker.started
@@ -320,16 +375,6 @@ def _previous_frame(tracker: Tracker | PiecesTracker) -> NDArray[np.uint8] | Non
     """The grey frame the tracker's contour is on (its first piece's)."""
     first = tracker.trackers[0] if isinstance(tracker, PiecesTracker) else tracker
     return first.previous_frame
-
-
-def _probability(
-    tracker: Tracker | PiecesTracker, region: NDArray[np.uint8]
-) -> NDArray[np.float32]:
-    """The object's appearance p(object) over an image region (its pieces': the largest)."""
-    if isinstance(tracker, PiecesTracker):
-        found = [t.appearance.probability(region) for t in tracker.trackers]
-        return np.asarray(np.maximum.reduce(found), np.float32)
-    return np.asarray(tracker.appearance.probability(region), np.float32)
 
 
 def _is_list_of_contours(value: Sequence[object]) -> bool:
