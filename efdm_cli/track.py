@@ -170,11 +170,14 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
     options = parse_options(args.option)
     if args.stiffness is not None:
         options["stiffness"] = args.stiffness
+    if args.processes < 0:
+        raise CliError(f"--processes must be 0 or more; got {args.processes}", EXIT_INVALID)
     source = open_frames(args.input)
     frames = source.frames()
     sink = out
     overlay: OverlayWriter | None = None
     progress: Progress | None = None
+    crowd: ObjectsTracker | None = None
     try:
         first = next(frames, None)
         if first is None:
@@ -186,7 +189,8 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
         tracker: Tracker | PiecesTracker | ObjectsTracker
         try:
             if len(objects) > 1:
-                tracker = ObjectsTracker(objects, **options)
+                spread = {"workers": args.processes, "processes": True} if args.processes else {}
+                tracker = crowd = ObjectsTracker(objects, **spread, **options)
             elif len(contours) > 1:
                 tracker = PiecesTracker(contours, **options)
             else:
@@ -248,6 +252,8 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             print(summary(confidences, statuses, time.perf_counter() - started), file=sys.stderr)
     finally:
         frames.close()
+        if crowd is not None:
+            crowd.close()  # its worker processes, if any
         if progress is not None:
             progress.close()
         if overlay is not None:
@@ -334,6 +340,11 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     t.add_argument(
         "--option", "-O", action="append", default=[], metavar="KEY=VALUE",
         help="another tracker option, e.g. search_radius=16 (repeatable); VALUE is JSON, else text",
+    )  # fmt: skip
+    t.add_argument(
+        "--processes", type=int, default=0, metavar="N",
+        help="track several objects on N worker processes, the same results sooner on "
+        "several cores (default: 0, in this process)",
     )  # fmt: skip
     t.add_argument("--out", "-o", metavar="JSONL", help="write the records here, not stdout")
     t.add_argument("--overlay", metavar="VIDEO", help="also write a video with the contour drawn")

@@ -128,6 +128,23 @@ def test_label_without_a_mask_is_an_error(
     assert "--label chooses an object of --init-mask" in capsys.readouterr().err
 
 
+def test_several_objects_on_worker_processes_give_the_same_records(tmp_path: Path) -> None:
+    mask = tmp_path / "labels.png"
+    assert cv2.imwrite(str(mask), two_objects())
+    argv = ["track", str(frames(tmp_path)), "--init-mask", str(mask), "-q", "-n", "32"]
+    here, there = tmp_path / "here.jsonl", tmp_path / "there.jsonl"
+    assert main([*argv, "-o", str(here)]) == 0
+    assert main([*argv, "-o", str(there), "--processes", "2"]) == 0
+
+    def without_time(path: Path) -> list[dict[str, object]]:
+        records = [json.loads(line) for line in path.read_text().splitlines()]
+        return [{k: v for k, v in r.items() if k != "elapsed_ms"} for r in records]
+
+    assert without_time(there) == without_time(here)
+    assert len(without_time(here)) == 3
+    assert main([*argv, "--processes", "-1"]) == EXIT_INVALID
+
+
 def test_mask_error_is_a_value_error() -> None:
     assert issubclass(MaskError, ValueError)
 
