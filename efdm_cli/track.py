@@ -306,9 +306,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--init-box",
         action="append",
         metavar="X0,Y0,X1,Y1",
-        help="a box around the object in pixel edges (the box of a mask spanning columns "
-        "x0..x1-1, rows y0..y1-1); snapped onto the object inside it unless --no-snap; "
-        "repeat for several objects (ids 1, 2, ...)",
+        help="the object's bounding box in pixel edges (the box of a mask spanning columns "
+        "x0..x1-1, rows y0..y1-1: the object reaches every side); snapped onto the object "
+        "inside it unless --no-snap; repeat for several objects (ids 1, 2, ...)",
     )
     init.add_argument("--init-polygon", metavar='"X,Y X,Y ..."', help="polygon, >= 3 points")
     init.add_argument("--init-circle", metavar="CX,CY,R", help="circle, centre and radius")

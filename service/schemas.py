@@ -57,7 +57,9 @@ class ObjectSpec(BaseModel):
     nodes: list[Point] | None = Field(None, description="contour, [[x, y], ...]")
     circle: Circle | None = None
     box: tuple[Finite, Finite, Finite, Finite] | None = Field(
-        None, description="[x0, y0, x1, y1], pixel edges; snapped unless 'snap' is false"
+        None,
+        description="[x0, y0, x1, y1], pixel edges, the object's bounding box (the object "
+        "reaches every side); snapped unless 'snap' is false",
     )
     mask: str | None = Field(
         None,
@@ -96,8 +98,9 @@ class SessionCreate(BaseModel):
     box: tuple[Finite, Finite, Finite, Finite] | None = Field(
         None,
         description="[x0, y0, x1, y1] around the object, pixel edges (the box of a mask whose "
-        f"pixels span columns x0..x1-1, rows y0..y1-1); a contour of {BOX_NODES} nodes, snapped "
-        "onto the object on the first frame unless 'snap' is false",
+        f"pixels span columns x0..x1-1, rows y0..y1-1: the object reaches every side); a "
+        f"contour of {BOX_NODES} nodes, snapped onto the object on the first frame unless "
+        "'snap' is false",
     )
     snap: bool | None = Field(
         None,
