@@ -261,8 +261,8 @@ class ObjectsTracker:
         covers: Mapping[Hashable, NDArray[np.bool_] | None],
         shared: SharedMotion | None,
     ) -> list[Any]:
-        """Track the objects of ``wave`` (on the pool of threads when there is one)."""
-
+        """Track the objects of ``wave`` (on the worker processes, or the pool of threads,
+        when there is one)."""
         if self._workers is not None:
             return self._workers.step([(self.trackers[k], covers[k]) for k in wave])
 
