@@ -32,7 +32,7 @@ from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedMotion
 from engine.tracking.tracker import Tracker
 
-__all__ = ["Remote", "Workers", "probability_of", "restore"]
+__all__ = ["Remote", "Workers", "contours_of", "probability_of", "restore", "started"]
 
 Layout = tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...] | None]
 """Shapes of the image, the grey frame and the flow (None: none) in the block."""
@@ -187,25 +187,19 @@ class Remote:
         self, workers: Workers, index: int, ident: int, tracker: Tracker | PiecesTracker
     ) -> None:
         self.workers, self.index, self.ident = workers, index, ident
-        self.pieces = isinstance(tracker, PiecesTracker)
         self.contours: list[NDArray[np.float64]] = (
             tracker.contours if isinstance(tracker, PiecesTracker) else [tracker.nodes]
         )
-        self.started = _started(tracker)
+        self.started = started(tracker)
 
     def took(self, result: Any) -> None:
         """Keep what a step answered: the contours, and that the tracker has started."""
-        self.contours = list(result.contours) if self.pieces else [result.nodes]
+        self.contours = contours_of(result)
         self.started = True
 
     def probability(self, region: NDArray[np.uint8]) -> NDArray[np.float32]:
         """The object's appearance p(object) over an image region."""
         result: NDArray[np.float32] = self.workers.call(self.index, ("p", self.ident, region))
-        return result
-
-    def previous_frame(self) -> NDArray[np.uint8] | None:
-        """The grey frame the contour is on."""
-        result: NDArray[np.uint8] | None = self.workers.call(self.index, ("previous", self.ident))
         return result
 
     def to_state(self, **kwargs: Any) -> dict[str, Any]:
@@ -235,15 +229,16 @@ def _ident(tracker: Tracker | PiecesTracker | Remote) -> int:
     return _held(tracker).ident
 
 
-def _started(tracker: Tracker | PiecesTracker) -> bool:
+def started(tracker: Tracker | PiecesTracker | Remote) -> bool:
+    """Whether the tracker has seen a frame (a new object is only placed on this one)."""
     if isinstance(tracker, PiecesTracker):
         return all(t.started for t in tracker.trackers)
     return tracker.started
 
 
-def _previous(tracker: Tracker | PiecesTracker) -> NDArray[np.uint8] | None:
-    first = tracker.trackers[0] if isinstance(tracker, PiecesTracker) else tracker
-    return first.previous_frame
+def contours_of(result: Any) -> list[NDArray[np.float64]]:
+    """A tracker's or a pieces tracker's step result as its list of contours."""
+    return list(result.contours) if hasattr(result, "contours") else [result.nodes]
 
 
 def restore(state: Mapping[str, Any]) -> Tracker | PiecesTracker:
@@ -313,8 +308,6 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
                     value.append(tracker.step_prepared(image, grey, Crowd(covered, shared)))
             elif kind == "p":
                 value = probability_of(trackers[message[1]], message[2])
-            elif kind == "previous":
-                value = _previous(trackers[message[1]])
             elif kind == "state":
                 value = trackers[message[1]].to_state(**message[2])
             else:

@@ -33,7 +33,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from engine.geometry import contour_to_mask
-from engine.tracking._processes import Remote, Workers, probability_of, restore
+from engine.tracking._processes import (
+    Remote,
+    Workers,
+    contours_of,
+    probability_of,
+    restore,
+    started,
+)
 from engine.tracking.confidence import Status
 from engine.tracking.covering import Order, Silhouette, fronts
 from engine.tracking.pieces import PiecesTracker
@@ -209,7 +216,7 @@ class ObjectsTracker:
         silhouettes = {
             key: found
             for key, tracker in self.trackers.items()
-            if _started(tracker) and (found := Silhouette.of(self.contours(key), shape))
+            if started(tracker) and (found := Silhouette.of(self.contours(key), shape))
         }
 
         def probability(key: Hashable, box: tuple[int, int, int, int]) -> NDArray[np.float32]:
@@ -237,7 +244,7 @@ class ObjectsTracker:
         for key in self.trackers:
             r = results[key]
             behind = tuple(in_front.get(key, ()))
-            out.append(ObjectResult(key, _contours(r), float(r.confidence), r.status, behind))
+            out.append(ObjectResult(key, contours_of(r), float(r.confidence), r.status, behind))
         return out
 
     def _shared(
@@ -293,7 +300,7 @@ class ObjectsTracker:
         for other in front:
             silhouettes[other].paint(covered)
             if other in results:
-                now = Silhouette.of(_contours(results[other]), shape)
+                now = Silhouette.of(contours_of(results[other]), shape)
                 if now is not None:
                     now.paint(covered)
         return covered
@@ -340,20 +347,6 @@ class ObjectsTracker:
         restored._previous = next((f for f in frames if f is not None), None)
         restored._order = _order_of(state.get("in_front", []), restored.trackers)
         return restored
-
-
-def _contours(result: Any) -> list[NDArray[np.float64]]:
-    """A tracker's or a pieces tracker's result as its list of contours."""
-    return list(result.contours) if hasattr(result, "contours") else [result.nodes]
-
-
-def _started(tracker: Tracker | PiecesTracker | Remote) -> bool:
-    """Whether the tracker has seen a frame (a new object is only placed on this one)."""
-    if isinstance(tracker, Remote):
-        return tracker.started
-    if isinstance(tracker, PiecesTracker):
-        return all(t.started for t in tracker.trackers)
-    return tracker.started
 
 
 def _order_of(pairs: object, known: Mapping[Hashable, object]) -> Order:
