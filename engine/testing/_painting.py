@@ -12,12 +12,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
-
 __all__ = ["background", "blob", "coverage", "fill", "gauss_table", "paint", "paint_image"]
 
 SS = 4
 """Supersampling factor for anti-aliased coverage (4 x 4 samples a pixel)."""
+
+HALF = np.float32((SS * SS // 2) / (SS * SS))
+"""Coverage from which a pixel is in a mask: half its samples (8 of 16) inside."""
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -69,10 +70,19 @@ def paint_image(img: F32, poly: F64, source: F32) -> None:
 
 
 def fill(polys: list[F64], H: int, W: int) -> U8:
-    """The mask of the union of polygons (each by :func:`engine.geometry.contour_to_mask`)."""
-    mask = contour_to_mask(polys[0], (H, W))
-    for poly in polys[1:]:
-        mask |= contour_to_mask(poly, (H, W))
+    """The mask (0 / 255) of the pixels the union of polygons covers at least half of.
+
+    DAVIS's annotations follow this rule: a pixel is object when most of it is
+    object in the (anti-aliased) frame, :data:`HALF` of its :func:`coverage`
+    samples.  Filling the outline with :func:`engine.geometry.contour_to_mask`
+    instead adds every pixel the outline touches: half a pixel more all round.
+    """
+    mask = np.zeros((H, W), np.uint8)
+    cov = coverage(polys, H, W)
+    if cov is not None:
+        y0, x0, alpha = cov
+        h, w = alpha.shape
+        mask[y0 : y0 + h, x0 : x0 + w] = np.where(alpha >= HALF, 255, 0).astype(np.uint8)
     return mask
 
 

@@ -38,8 +38,9 @@ the shape through the occlusion), and it is not blurred in ``"motion_blur"``.
 ``SyntheticSequence.visible`` says per frame whether any of the object can be
 seen: False only in the frames ``"hidden"`` covers it entirely, whose masks
 still show where it is.
-Masks are filled with :func:`engine.geometry.contour_to_mask` (pixel centres
-inside the outline); frames are anti-aliased by 4 x 4 supersampled coverage.
+Frames are anti-aliased by 4 x 4 supersampled coverage, and a mask holds the
+pixels the object covers at least half of, as DAVIS's annotations do (not
+every pixel its outline touches, which would be half a pixel more all round).
 
 The object always stays at least 10 pixels inside the frame.  Speeds are in
 pixels per frame and do not depend on the frame size; the object's radius

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from engine.testing import _painting
 from engine.testing.synthetic import _OCCLUDER_BGR, CONDITIONS, SyntheticSequence, make_sequence
 
 SMALL = (144, 192)
@@ -238,22 +239,24 @@ def test_bad_arguments_raise_value_error(
 # ------------------------------------------------------------------ the conditions added later
 
 EXISTING = {
-    "plain": "bf36505dadfb75a7add7a354d43d33a2286d1ca0c6b9ef6425f6ed0eaeee980d",
-    "noise": "5c0937fb84cad96f9399c41ac37fc0f58f1ed20414a3c0c443720fce4462653d",
-    "strong_noise": "e6d9ac5a8a4c47fd14943d04353ba959c5b359c0e2076e23949d07f3555d3abc",
-    "clutter": "d5b78acf2dc4adf9178827897c9a30efb27ccf6806dfa9aaba5e4ef77cd9d6e7",
-    "fast_motion": "6b4bcec48348a5f443a7ead932b5180c6312e82654236769065fd2760d7f37af",
-    "motion_blur": "e86e796cc96879e676bf72d32dfecb5b409d52e4574b9e4330b5fe69b8cfb49c",
-    "low_contrast": "fc256ee62bf321d9b8f3d28c187b3d9c4ba9275b941d4e45e1a8409027870173",
-    "shape_change": "38138a26f07cbb28c0babc7b04d8a8df0e347d8435715f47728ad2eff356361c",
-    "scale_change": "f958ed6f3ccca82f0fe672642808d16af6cc5209a1a5de32a678ab6a2c7f9ee8",
-    "occluder": "16d9bcdfc03018ca295c8c2ee355f27312d11d56f56db810b4c8f741b40d060c",
-    "textured": "0dd40fe6edb1ef0911515a6b05fb908906873d48e1d0c2489c575c249c82f180",
-    "matched_background": "af5a10df5db27758d1af488bd21fdc96f94219502eee07695c2b75b649e48916",
+    "plain": "26c6028879f346c9cb7dc14aaf9776084648d7160d3554bc872917d194a21c1f",
+    "noise": "402d79783f00d41876b3a5f759223d690c2486bba53fa31b6f616c159d3347d9",
+    "strong_noise": "0649128c598b4249322949edfaa4e37a567ebb3f4e388ee8c38b39a752837deb",
+    "clutter": "76596038f7c9f514c083acdf81707154fe965a4bc4b8f81360fba5325ff29fd8",
+    "fast_motion": "1647334c5283c5c528e0a7a1668bb5df811a2a3b12b94f61f620a57eac2e8c71",
+    "motion_blur": "00668bf3fa11ebb23ea4a6dda99e831e692ec3dcd34372b647149c60d6673951",
+    "low_contrast": "15c2ad0696867dcd533bd218162c28f594bca07056ffae5809d9a84deb39b7b4",
+    "shape_change": "ff8450b5bdd1672aa44d54fe8a1d54fd76258cdcd157b93d217fa7393eb527d2",
+    "scale_change": "db41b12d93da614ab80852610365ff4f7b3ff00128acc5ba01888ae9efea4a75",
+    "occluder": "8211c7aff7cb9b071cc4a5aca1ccceb4f417dba6bd334c28c48f0efad174e589",
+    "textured": "47a290dedeb580c5570fda6f66e7dbdde40aa572e2b9328dfa999a77d9ee9814",
+    "matched_background": "64e6a768c0ef07da2a93e990d41bf5ed47dfc30ac8377e005906f078fb3e7b0d",
 }
-"""SHA-256 of the frames and masks of seeds 0 and 1 (144 x 192, 6 frames) and seed 2
-(480 x 640, 3 frames) of the first twelve conditions, as generated before the later ones were
-added (bit-exact: a numpy or OpenCV upgrade that changes the rendering changes them too)."""
+"""SHA-256 of the frames of seeds 0 and 1 (144 x 192, 6 frames) and seed 2 (480 x 640,
+3 frames) of the first twelve conditions, as generated before the later ones were added
+(bit-exact: a numpy or OpenCV upgrade that changes the rendering changes them too).  The
+masks are checked by their rule (:func:`test_a_mask_holds_the_pixels_covered_at_least_half`):
+until 2026-11-26 they held every pixel the outline touched, half a pixel more all round."""
 NEW = ("no_contrast_stretch", "hidden", "thin_parts", "articulated", "fast_40", "small")
 DISK_11 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))
 
@@ -271,10 +274,29 @@ def test_existing_conditions_render_as_before(condition: str) -> None:
         small(condition, 1),
         make_sequence(condition, seed=2, length=3, size=(480, 640)),
     ):
-        for frame, mask in zip(seq.frames, seq.masks, strict=True):
+        for frame in seq.frames:
             h.update(frame.tobytes())
-            h.update(mask.tobytes())
     assert h.hexdigest() == EXISTING[condition]
+
+
+def test_a_mask_holds_the_pixels_covered_at_least_half() -> None:
+    # a square from 10.3 to 30.3: the pixel centres 11..30 inside, 20 a side; the pixels
+    # its outline touches are 10..30, 21 a side
+    square = np.array([[10.3, 10.3], [30.3, 10.3], [30.3, 30.3], [10.3, 30.3]])
+    mask = _painting.fill([square], 48, 48)
+    ys, xs = np.nonzero(mask)
+    assert (xs.min(), xs.max(), ys.min(), ys.max()) == (11, 30, 11, 30)
+    assert mask.sum() == 400 * 255
+    # a union: a disc of radius 12 and a bar through it, each pixel centre inside either
+    t = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
+    disc = np.c_[24.4 + 12 * np.cos(t), 24.7 + 12 * np.sin(t)]
+    bar = np.array([[2.0, 22.5], [46.0, 22.5], [46.0, 26.5], [2.0, 26.5]])
+    both = _painting.fill([disc, bar], 48, 48) > 0
+    y, x = np.mgrid[:48, :48]
+    inside = ((x - 24.4) ** 2 + (y - 24.7) ** 2 < 144) | (
+        (y >= 23) & (y <= 26) & (x >= 2) & (x <= 46)
+    )
+    assert np.count_nonzero(both != inside) <= 12  # of 470: pixels the edge halves (ties)
 
 
 @cache
