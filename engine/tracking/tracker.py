@@ -69,6 +69,7 @@ from engine.tracking.reacquisition import search_reach, search_shape
 from engine.tracking.refinement import Refinement, refine
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
+from engine.tracking.shape_memory import follow, rest_on
 from engine.tracking.shared import Crowd
 from engine.tracking.stages import (
     AppearanceModel,
@@ -341,7 +342,9 @@ class Tracker:
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
         memory = self._memory
         hold = memory.hold
-        attempt = self._attempt(image, grey, prediction, self.cues, hold, crowd)
+        if memory.outline is not None:
+            memory.outline = follow(memory.outline, prediction.matrix, prediction.nodes, hold)
+        attempt = self._attempt(image, grey, prediction, self.cues, hold, crowd, memory.outline)
         visible = self._visible(grey)
         share = covered_share(crowd.covered, prediction.nodes)
         if attempt.score < SEARCH_BELOW and visible and share < SEARCH_UNLESS_COVERED:
@@ -352,6 +355,9 @@ class Tracker:
                 other = self._attempt(image, grey, retry, cues, moved, crowd)
                 margin = attempt.score + REACQUIRE_MARGIN
                 if other.score >= self.options.reacquire_above and other.score > margin:
+                    if memory.outline is not None:  # the remembered outline goes along
+                        shift = retry.nodes.mean(axis=0) - prediction.nodes.mean(axis=0)
+                        memory.outline = memory.outline + shift
                     prediction, attempt, self.cues, hold = retry, other, cues, moved
                     self.motion.reset()
                     memory.probation = PROBATION + 1
@@ -383,8 +389,14 @@ class Tracker:
         cues: BoundaryCues,
         hold: NDArray[np.float64],
         crowd: Crowd,
+        outline: NDArray[np.float64] | None = None,
     ) -> _Attempt:
-        """Cue maps, refinement and cut around ``prediction``; the confidence of the result."""
+        """Cue maps, refinement and cut around ``prediction``; the confidence of the result.
+
+        Given the remembered ``outline``, the nodes held on the first frame that show no
+        colour step now either rest on it where they lie outside it
+        (:mod:`engine.tracking.shape_memory`).
+        """
         maps = cues.maps(image, grey, prediction, self.appearance)
         guide = maps
         if self.options.motion_contrast and self._previous is not None:
@@ -398,6 +410,12 @@ class Tracker:
                 guide = dataclasses.replace(maps, probability=probability, observed=maps.seen)
                 maps = dataclasses.replace(maps, motion=ratio)
         guide, maps = cover_maps(guide, crowd.covered), cover_maps(maps, crowd.covered)
+        if outline is not None:
+            contrast = side_contrast(maps.probability, maps.origin, prediction.nodes)
+            still = hold * hold_factors(contrast, self.options.hold_below)
+            prediction = dataclasses.replace(
+                prediction, nodes=rest_on(prediction.nodes, outline, still)
+            )
         refinement = refine(
             guide,
             grey.shape,
@@ -442,6 +460,8 @@ class Tracker:
             self.appearance.probability(image[y0:y1, x0:x1]), (x0, y0), self._nodes
         )
         self._memory.hold = hold_factors(contrast, self.options.hold_below)
+        if self.options.shape_memory:
+            self._memory.outline = self._nodes.copy()
         return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
 
     def _forget_search(self) -> None:
@@ -497,6 +517,8 @@ class Tracker:
             search = state["search"]  # the shape searched for, to a hundredth of a pixel
             search["shape"] = np.round(self._memory.shape, 2).tolist()
             search["hold"] = np.round(self._memory.hold, 3).tolist()
+            if self._memory.outline is not None:
+                search["outline"] = np.round(self._memory.outline, 2).tolist()
             room = COMPACT_BYTES - len(json.dumps(state))
             state["previous"] = pack_compact_frame(previous, self._nodes, room)
         elif previous is not None:
@@ -548,6 +570,7 @@ class Tracker:
             # continue as the tracker that wrote it
             options.setdefault("motion_contrast", False)
             options.setdefault("figure_ground", False)
+            options.setdefault("shape_memory", False)  # and before the shape memory
             tracker = cls(
                 state["nodes"],
                 motion=motion,

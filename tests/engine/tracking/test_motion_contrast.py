@@ -110,11 +110,13 @@ def camouflaged(frames: int) -> tuple[list[U8], list[NDArray[np.bool_]]]:
 
 def test_the_tracker_follows_an_object_only_its_motion_tells_from_the_background() -> None:
     # same grey-level statistics inside and out: the colour models cannot
-    # tell the disc from the background, its motion against the pan can
+    # tell the disc from the background, its motion against the pan can (the shape
+    # memory, which holds the first frame's disc where no colour step is seen, is off:
+    # with it the disc is held either way, 0.96 without the cue)
     frames, masks = camouflaged(12)
     scores = {}
     for contrast in (False, True):
-        tracker = engine.Tracker(NODES, motion_contrast=contrast)
+        tracker = engine.Tracker(NODES, motion_contrast=contrast, shape_memory=False)
         ious = []
         for frame, mask in zip(frames, masks, strict=True):
             nodes = tracker.step(frame).nodes

@@ -1,0 +1,117 @@
+"""Shape memory: a node the image says nothing about rests on the object's remembered outline.
+
+Holding (:mod:`engine.tracking.holding`) keeps a node without a colour step
+across the contour on the *predicted* shape, but the prediction is the last
+contour moved on.  Whatever a frame's cues push such a node by (the cut
+taking in a few pixels of the object's colour, an edge of same-coloured
+background coming within reach) is kept, and frame after frame the contour
+creeps into background that looks like the object, never to come back.
+
+So the tracker remembers the outline it was given on the first frame (the
+one contour known to be right), carries it with the object's similarity
+motion and re-aligns it every frame, robustly (least median of squares), to
+the nodes that do have boundary evidence.  A node that was held on the first
+frame, still shows no colour step, and lies outside the remembered outline
+rests on it (the rest shape X0 of the refinement, paper eq. 13-16) instead of
+on the prediction.  A node with evidence is never moved: a genuine change of
+shape where the image shows it (a vault, a dancer's arms) is followed, and
+held nodes between free ones follow them through the chain.
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from engine.geometry import outward_normals, resample
+
+__all__ = ["DENSITY", "FREE_BELOW", "MIN_FREE", "follow", "rest_on"]
+
+FREE_BELOW = 0.5
+"""A node held less than this (:func:`engine.tracking.holding.hold_factors`) had a
+colour step on the first frame: its place is evidence, and it aligns the outline."""
+MIN_FREE = 8
+"""Fewer free nodes than this cannot fix a similarity robustly: the outline then
+only moves with the object's motion."""
+DENSITY = 4
+"""Points per node of the outline a node is put back on: the nearest of them is
+within an eighth of a node spacing of the nearest point of the outline."""
+
+
+def follow(
+    outline: NDArray[np.float64],
+    motion: NDArray[np.float64],
+    nodes: NDArray[np.float64],
+    hold: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """The remembered outline moved by the object's motion, then aligned to the free nodes.
+
+    Parameters
+    ----------
+    outline : numpy.ndarray
+        (M, 2) ``[x, y]`` remembered outline in the previous frame.
+    motion : numpy.ndarray
+        2 x 3 similarity of the object from the previous frame to this one
+        (:attr:`engine.tracking.stages.Prediction.matrix`).
+    nodes : numpy.ndarray
+        (N, 2) ``[x, y]`` predicted contour in this frame.
+    hold : numpy.ndarray
+        (N,) per node of ``nodes``, in [0, 1]: how far it is held; the nodes
+        held less than :data:`FREE_BELOW` align the outline.
+
+    Returns
+    -------
+    numpy.ndarray
+        (M, 2) the outline in this frame: moved by ``motion``, then by the
+        similarity (least median of squares) that best lays it onto the free
+        nodes, each paired with its nearest outline point.
+    """
+    moved = outline @ motion[:, :2].T + motion[:, 2]
+    free = hold < FREE_BELOW
+    if len(hold) != len(nodes) or np.count_nonzero(free) < MIN_FREE:
+        return moved
+    dense = resample(moved, DENSITY * len(moved))
+    targets = nodes[free]
+    _, nearest = cKDTree(dense).query(targets)
+    fit, _ = cv2.estimateAffinePartial2D(dense[nearest], targets, method=cv2.LMEDS)
+    if fit is None:
+        return moved
+    aligned: NDArray[np.float64] = moved @ fit[:, :2].T + fit[:, 2]
+    return aligned
+
+
+def rest_on(
+    nodes: NDArray[np.float64], outline: NDArray[np.float64], weight: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``nodes`` outside the outline moved towards their nearest point of it by ``weight``.
+
+    Parameters
+    ----------
+    nodes : numpy.ndarray
+        (N, 2) ``[x, y]`` predicted contour.
+    outline : numpy.ndarray
+        (M, 2) ``[x, y]`` remembered outline in this frame (:func:`follow`).
+    weight : numpy.ndarray
+        (N,) in [0, 1]: 1 puts a node on the outline, 0 leaves it.  Nodes
+        inside the outline are left whatever their weight: the memory stops
+        a creep outwards, it does not stretch a contour that fell short.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 2) the contour, ``nodes`` itself when no node moves.
+    """
+    if len(weight) != len(nodes) or not np.any(weight > 0):
+        return nodes
+    dense = resample(outline, DENSITY * len(outline))
+    _, nearest = cKDTree(dense).query(nodes)
+    target = dense[nearest]
+    outside = np.einsum("ij,ij->i", nodes - target, outward_normals(dense)[nearest]) > 0
+    share = np.where(outside, np.clip(weight, 0.0, 1.0), 0.0)
+    if not share.any():
+        return nodes
+    result: NDArray[np.float64] = nodes + share[:, None] * (target - nodes)
+    return result

@@ -1,0 +1,109 @@
+"""engine.tracking.shape_memory: nodes without evidence rest on the remembered outline."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
+from engine.testing.synthetic import make_sequence
+from engine.tracking import Tracker
+from engine.tracking.shape_memory import MIN_FREE, follow, rest_on
+
+IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def similarity(angle: float, scale: float, shift: tuple[float, float]) -> np.ndarray:
+    c, s = scale * np.cos(angle), scale * np.sin(angle)
+    return np.array([[c, -s, shift[0]], [s, c, shift[1]]])
+
+
+def moved(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    result: np.ndarray = points @ matrix[:, :2].T + matrix[:, 2]
+    return result
+
+
+def test_follow_moves_the_outline_with_the_object() -> None:
+    outline = circle_nodes((100.0, 80.0), 30.0, 64)
+    motion = similarity(0.1, 1.05, (4.0, -3.0))
+    # no free node: the object's motion alone
+    held = np.ones(64)
+    np.testing.assert_allclose(
+        follow(outline, motion, moved(outline, motion), held), moved(outline, motion)
+    )
+
+
+def blob(count: int) -> np.ndarray:
+    t = np.linspace(0.0, 2 * np.pi, count, endpoint=False)
+    r = 30.0 * (1 + 0.25 * np.cos(2 * t) + 0.1 * np.cos(3 * t + 1.0))
+    return np.stack([100.0 + r * np.cos(t), 80.0 + r * np.sin(t)], axis=1)
+
+
+def test_follow_aligns_to_the_free_nodes_and_ignores_the_held_ones() -> None:
+    outline = blob(128)
+    truth = similarity(0.02, 1.01, (1.5, -1.0))  # what the motion model missed
+    nodes = moved(blob(64), truth)
+    hold = np.zeros(64)
+    hold[:20] = 1.0  # a held stretch that crept 6 pixels out
+    centre = nodes.mean(axis=0)
+    out = (nodes[:20] - centre) / np.linalg.norm(nodes[:20] - centre, axis=1)[:, None]
+    nodes[:20] += 6.0 * out
+
+    def error(found: np.ndarray) -> float:
+        return float(np.linalg.norm(found - moved(outline, truth), axis=1).mean())
+
+    # one nearest-point alignment per frame closes most of the gap, and it keeps closing
+    found = follow(outline, IDENTITY, nodes, hold)
+    assert error(found) < 0.75 * error(outline)
+    for _ in range(3):
+        found = follow(found, IDENTITY, nodes, hold)
+    assert error(found) < 0.5 * error(outline)
+    # least median of squares: even taken as free, the crept stretch does not drag it
+    robust = follow(outline, IDENTITY, nodes, np.zeros(64))
+    assert error(robust) < 0.75 * error(outline)
+    # too few free nodes: no alignment
+    few = np.ones(64)
+    few[: MIN_FREE - 1] = 0.0
+    np.testing.assert_allclose(follow(outline, IDENTITY, nodes, few), outline)
+
+
+def test_rest_on_puts_back_only_the_nodes_outside() -> None:
+    outline = circle_nodes((50.0, 50.0), 20.0, 64)
+    nodes = circle_nodes((50.0, 50.0), 20.0, 16)
+    nodes[0] += (nodes[0] - 50.0) * 0.25  # 5 px outside
+    nodes[8] -= (nodes[8] - 50.0) * 0.25  # 5 px inside
+    weight = np.ones(16)
+    rested = rest_on(nodes, outline, weight)
+    assert np.linalg.norm(rested[0] - 50.0) == pytest.approx(20.0, abs=0.05)
+    np.testing.assert_array_equal(rested[8], nodes[8])  # inside: left as it is
+    half = rest_on(nodes, outline, 0.5 * weight)
+    assert np.linalg.norm(half[0] - 50.0) == pytest.approx(22.5, abs=0.05)
+    assert rest_on(nodes, outline, np.zeros(16)) is nodes
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_a_stretch_without_contrast_does_not_creep_out(seed: int) -> None:
+    """Object-coloured background along a third of the outline, for 40 frames."""
+    clip = make_sequence("no_contrast_stretch", seed=seed, length=40)
+    start = mask_to_contour(clip.masks[0], 128)
+    remembering, forgetting = Tracker(start), Tracker(start, shape_memory=False)
+    for frame in clip.frames:
+        a, b = remembering.step(frame), forgetting.step(frame)
+    last = clip.masks[-1]
+    assert mask_iou(contour_to_mask(a.nodes, last.shape), last) >= 0.93
+    assert mask_iou(contour_to_mask(b.nodes, last.shape), last) < 0.85  # it creeps without
+
+
+def test_the_outline_is_part_of_the_state() -> None:
+    clip = make_sequence("no_contrast_stretch", seed=1, length=12)
+    tracker = Tracker(mask_to_contour(clip.masks[0], 96))
+    for frame in clip.frames[:6]:
+        tracker.step(frame)
+    resumed = Tracker.from_state(tracker.to_state())
+    for frame in clip.frames[6:]:
+        np.testing.assert_array_equal(resumed.step(frame).nodes, tracker.step(frame).nodes)
+    # a state written before the shape memory continues without it
+    old = tracker.to_state()
+    del old["options"]["shape_memory"]
+    del old["search"]["outline"]
+    assert not Tracker.from_state(old).options.shape_memory
