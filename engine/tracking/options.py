@@ -121,7 +121,9 @@ class TrackerOptions:
         the first frame's outline, carried with the object, where they would
         creep outside it (:mod:`engine.tracking.shape_memory`; default True:
         a stretch of boundary without contrast otherwise leaks further every
-        frame; on the thirty training sequences J is within 0.003 either way).
+        frame; cross-validated on the thirty training sequences with each
+        tracked from five node counts, chosen in all five folds, J 0.689
+        against 0.685).
 
     Raises
     ------

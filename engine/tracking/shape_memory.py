@@ -27,8 +27,9 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from engine.geometry import outward_normals, resample
+from engine.physics import deform
 
-__all__ = ["DENSITY", "FREE_BELOW", "MIN_FREE", "follow", "rest_on"]
+__all__ = ["DENSITY", "FREE_BELOW", "MIN_FREE", "SPREAD", "follow", "rest_on"]
 
 FREE_BELOW = 0.5
 """A node held less than this (:func:`engine.tracking.holding.hold_factors`) had a
@@ -39,6 +40,14 @@ only moves with the object's motion."""
 DENSITY = 4
 """Points per node of the outline a node is put back on: the nearest of them is
 within an eighth of a node spacing of the nearest point of the outline."""
+SPREAD = 5.0
+"""``a`` of the chain that spreads the pull back onto the outline over the
+neighbouring nodes (1/e over about two nodes): a node put back while its
+neighbour is not (it sees a colour step) would leave a spike in the rest shape,
+which the chain then keeps and which grows into the background.  Compared on
+seven seeds of the synthetic ``no_contrast_stretch``: mean IoU 0.939 without
+spreading (seeds 3-6 spiked), 0.944, 0.956, 0.948 and 0.932 with ``a`` = 2, 5,
+10 and 20; on the thirty training sequences J 0.689 against 0.687 without."""
 
 
 def follow(
@@ -86,7 +95,8 @@ def follow(
 def rest_on(
     nodes: NDArray[np.float64], outline: NDArray[np.float64], weight: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """``nodes`` outside the outline moved towards their nearest point of it by ``weight``.
+    """``nodes`` outside the outline moved towards their nearest point of it by ``weight``,
+    the moves spread along the chain (:data:`SPREAD`).
 
     Parameters
     ----------
@@ -95,9 +105,13 @@ def rest_on(
     outline : numpy.ndarray
         (M, 2) ``[x, y]`` remembered outline in this frame (:func:`follow`).
     weight : numpy.ndarray
-        (N,) in [0, 1]: 1 puts a node on the outline, 0 leaves it.  Nodes
-        inside the outline are left whatever their weight: the memory stops
-        a creep outwards, it does not stretch a contour that fell short.
+        (N,) in [0, 1]: 1 moves a node onto the outline, 0 does not move it
+        itself.  Nodes inside the outline do not move themselves whatever their
+        weight: the memory stops a creep outwards, it does not stretch a
+        contour that fell short.  Each node then moves by the chain's
+        equilibrium under these moves as forces, ``deform(moves, SPREAD)``
+        (paper eq. 13-16): a stretch of nodes put back moves nearly as a
+        whole, a lone node carries its neighbours part of the way.
 
     Returns
     -------
@@ -113,5 +127,7 @@ def rest_on(
     share = np.where(outside, np.clip(weight, 0.0, 1.0), 0.0)
     if not share.any():
         return nodes
-    result: NDArray[np.float64] = nodes + share[:, None] * (target - nodes)
+    # spread along the chain: a node put back while its neighbour is not leaves no spike
+    pull = deform(share[:, None] * (target - nodes), SPREAD)
+    result: NDArray[np.float64] = nodes + pull
     return result

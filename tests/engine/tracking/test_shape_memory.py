@@ -67,18 +67,32 @@ def test_follow_aligns_to_the_free_nodes_and_ignores_the_held_ones() -> None:
     np.testing.assert_allclose(follow(outline, IDENTITY, nodes, few), outline)
 
 
-def test_rest_on_puts_back_only_the_nodes_outside() -> None:
+def radii(nodes: np.ndarray) -> np.ndarray:
+    return np.asarray(np.hypot(*(nodes - 50.0).T))
+
+
+def test_rest_on_puts_back_the_nodes_outside_spread_along_the_chain() -> None:
     outline = circle_nodes((50.0, 50.0), 20.0, 64)
-    nodes = circle_nodes((50.0, 50.0), 20.0, 16)
-    nodes[0] += (nodes[0] - 50.0) * 0.25  # 5 px outside
-    nodes[8] -= (nodes[8] - 50.0) * 0.25  # 5 px inside
-    weight = np.ones(16)
-    rested = rest_on(nodes, outline, weight)
-    assert np.linalg.norm(rested[0] - 50.0) == pytest.approx(20.0, abs=0.05)
-    np.testing.assert_array_equal(rested[8], nodes[8])  # inside: left as it is
-    half = rest_on(nodes, outline, 0.5 * weight)
-    assert np.linalg.norm(half[0] - 50.0) == pytest.approx(22.5, abs=0.05)
-    assert rest_on(nodes, outline, np.zeros(16)) is nodes
+    nodes = circle_nodes((50.0, 50.0), 20.0, 32)
+    weight = np.ones(32)
+    # a stretch that crept 5 px out comes back nearly as a whole
+    crept = nodes.copy()
+    crept[:12] = 50.0 + (crept[:12] - 50.0) * 1.25
+    rested = rest_on(crept, outline, weight)
+    assert radii(rested[3:9]).max() < 21.0  # 25 before
+    half = rest_on(crept, outline, 0.5 * weight)
+    assert 22.0 < radii(half[3:9]).min() <= radii(half[3:9]).max() < 23.5
+    # a lone node is put back part of the way, its neighbours carried a little: no spike
+    lone = nodes.copy()
+    lone[16] = 50.0 + (lone[16] - 50.0) * 1.25
+    rested = rest_on(lone, outline, weight)
+    assert 20.0 < radii(rested[16:17])[0] < 24.0
+    assert radii(rested[15:16])[0] < 20.0
+    assert radii(rested[17:18])[0] < 20.0
+    # inside the outline, or without weight: nothing moves
+    inside = 50.0 + (nodes - 50.0) * 0.8
+    assert rest_on(inside, outline, weight) is inside
+    assert rest_on(crept, outline, np.zeros(32)) is crept
 
 
 @pytest.mark.parametrize("seed", [0, 2])
@@ -87,11 +101,13 @@ def test_a_stretch_without_contrast_does_not_creep_out(seed: int) -> None:
     clip = make_sequence("no_contrast_stretch", seed=seed, length=40)
     start = mask_to_contour(clip.masks[0], 128)
     remembering, forgetting = Tracker(start), Tracker(start, shape_memory=False)
-    for frame in clip.frames:
+    kept, lost = [], []
+    for frame, mask in zip(clip.frames, clip.masks, strict=True):
         a, b = remembering.step(frame), forgetting.step(frame)
-    last = clip.masks[-1]
-    assert mask_iou(contour_to_mask(a.nodes, last.shape), last) >= 0.93
-    assert mask_iou(contour_to_mask(b.nodes, last.shape), last) < 0.85  # it creeps without
+        kept.append(mask_iou(contour_to_mask(a.nodes, mask.shape), mask))
+        lost.append(mask_iou(contour_to_mask(b.nodes, mask.shape), mask))
+    assert np.mean(kept[1:]) >= 0.94  # 0.970 and 0.952 when written
+    assert np.mean(lost[1:]) < 0.9  # it creeps without (0.876, 0.879)
 
 
 def test_the_outline_is_part_of_the_state() -> None:
