@@ -1,4 +1,4 @@
-"""Compiled contour geometry (numba): self-crossing and outward normals.
+"""Compiled contour geometry (numba): self-crossing, outward normals, nearest points.
 
 Imported lazily so that ``import engine.geometry`` does not start the
 compiler; numba caches the machine code on disk.
@@ -56,3 +56,19 @@ def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
         out[i, 0] = sign * ty / length
         out[i, 1] = -sign * tx / length
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def nearest(queries: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Index of the nearest of ``points`` to each query (see engine.geometry.nearest)."""
+    found = np.empty(queries.shape[0], dtype=np.int64)
+    for q in range(queries.shape[0]):
+        qx, qy = queries[q, 0], queries[q, 1]
+        best, where = np.inf, 0
+        for i in range(points.shape[0]):
+            dx, dy = points[i, 0] - qx, points[i, 1] - qy
+            d = dx * dx + dy * dy
+            if d < best:
+                best, where = d, i
+        found[q] = where
+    return found

@@ -20,6 +20,7 @@ __all__ = [
     "mask_iou",
     "mask_to_contour",
     "mask_to_contours",
+    "nearest",
     "outward_normals",
     "polygon_area",
     "resample",
@@ -147,6 +148,21 @@ def outward_normals(nodes: Nodes) -> Nodes:
     from engine.geometry._kernels import outward_normals as normals
 
     result: Nodes = normals(np.ascontiguousarray(nodes, dtype=np.float64))
+    return result
+
+
+def nearest(queries: Nodes, points: Nodes) -> NDArray[np.int64]:
+    """Index of the nearest of ``points`` to each of ``queries`` (both (K, 2) ``[x, y]``).
+
+    Exhaustive, in one compiled pass: for the few hundred points of a contour
+    it beats building a k-d tree; ties go to the lowest index.
+    """
+    from engine.geometry._kernels import nearest as find
+
+    result: NDArray[np.int64] = find(
+        np.ascontiguousarray(queries, dtype=np.float64),
+        np.ascontiguousarray(points, dtype=np.float64),
+    )
     return result
 
 

@@ -20,6 +20,7 @@ def warm_up() -> None:
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     geometry.polyline_crosses(square, True)
     geometry.outward_normals(square)
+    geometry.nearest(square, square)
     table = np.zeros(4096, np.float32)
     for picture in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):
         image.colour_bins(picture, 5, 4)

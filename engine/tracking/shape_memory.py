@@ -24,9 +24,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
-from engine.geometry import outward_normals, resample
+from engine.geometry import nearest, outward_normals, resample
 from engine.physics import deform
 
 __all__ = ["DENSITY", "FREE_BELOW", "MIN_FREE", "SPREAD", "follow", "rest_on"]
@@ -84,8 +83,7 @@ def follow(
         return moved
     dense = resample(moved, DENSITY * len(moved))
     targets = nodes[free]
-    _, nearest = cKDTree(dense).query(targets)
-    fit, _ = cv2.estimateAffinePartial2D(dense[nearest], targets, method=cv2.LMEDS)
+    fit, _ = cv2.estimateAffinePartial2D(dense[nearest(targets, dense)], targets, method=cv2.LMEDS)
     if fit is None:
         return moved
     aligned: NDArray[np.float64] = moved @ fit[:, :2].T + fit[:, 2]
@@ -121,9 +119,9 @@ def rest_on(
     if len(weight) != len(nodes) or not np.any(weight > 0):
         return nodes
     dense = resample(outline, DENSITY * len(outline))
-    _, nearest = cKDTree(dense).query(nodes)
-    target = dense[nearest]
-    outside = np.einsum("ij,ij->i", nodes - target, outward_normals(dense)[nearest]) > 0
+    closest = nearest(nodes, dense)
+    target = dense[closest]
+    outside = np.einsum("ij,ij->i", nodes - target, outward_normals(dense)[closest]) > 0
     share = np.where(outside, np.clip(weight, 0.0, 1.0), 0.0)
     if not share.any():
         return nodes
