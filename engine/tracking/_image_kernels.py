@@ -318,3 +318,35 @@ def scale_odds(probability: NDArray[np.float32], ratio: NDArray[np.float32]) -> 
             scaled = p * ratio[i, j]
             out[i, j] = scaled / (scaled + (1.0 - p))
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def side_contrast(
+    probability: NDArray[np.float32],
+    origin_x: float,
+    origin_y: float,
+    nodes: NDArray[np.float64],
+    depth: int,
+) -> NDArray[np.float64]:
+    """Mean p(object) over 1..depth pixels inside each node minus outside it
+    (see :func:`engine.tracking.holding.side_contrast`; nearest pixels, 1/2 outside)."""
+    normals = outward_normals(nodes)
+    h, w = probability.shape
+    out = np.empty(nodes.shape[0])
+    for k in range(nodes.shape[0]):
+        x, y = nodes[k, 0] - origin_x, nodes[k, 1] - origin_y
+        nx, ny = normals[k, 0], normals[k, 1]
+        sides = np.zeros(2)
+        for side in range(2):
+            sign = -1.0 if side == 0 else 1.0
+            total = 0.0
+            for step in range(1, depth + 1):
+                j = int(np.rint(x + sign * step * nx))
+                i = int(np.rint(y + sign * step * ny))
+                if 0 <= j < w and 0 <= i < h:
+                    total += float(probability[i, j])
+                else:
+                    total += 0.5
+            sides[side] = total / depth
+        out[k] = sides[0] - sides[1]
+    return out

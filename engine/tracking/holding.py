@@ -19,8 +19,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import outward_normals
-
 __all__ = ["DEPTH", "carry", "hold_factors", "side_contrast"]
 
 DEPTH = 6
@@ -34,23 +32,20 @@ def side_contrast(
     """Mean p(object) over 1..:data:`DEPTH` pixels inside each node minus outside it.
 
     ``probability`` covers the region whose top-left pixel is frame point
-    ``origin``; samples outside it count as 1/2.
+    ``origin``; samples (the nearest pixel along the node's outward normal,
+    halves to even) outside it count as 1/2.  One compiled pass.
     """
-    normals = outward_normals(nodes)
-    local = nodes - np.asarray(origin, dtype=np.float64)
-    steps = np.arange(1, DEPTH + 1, dtype=np.float64)
-    h, w = probability.shape
+    from engine.tracking._image_kernels import side_contrast as contrast
 
-    def mean_at(sign: float) -> NDArray[np.float64]:
-        points = local[:, None, :] + sign * steps[None, :, None] * normals[:, None, :]
-        ij = np.round(points).astype(np.int64)
-        ok = (ij[..., 0] >= 0) & (ij[..., 0] < w) & (ij[..., 1] >= 0) & (ij[..., 1] < h)
-        values = np.full(ok.shape, 0.5)
-        values[ok] = probability[ij[..., 1][ok], ij[..., 0][ok]]
-        result: NDArray[np.float64] = values.mean(axis=1)
-        return result
-
-    return mean_at(-1.0) - mean_at(1.0)
+    x, y = origin
+    result: NDArray[np.float64] = contrast(
+        np.ascontiguousarray(probability, dtype=np.float32),
+        float(x),
+        float(y),
+        np.ascontiguousarray(nodes, dtype=np.float64),
+        DEPTH,
+    )
+    return result
 
 
 def hold_factors(contrast: NDArray[np.float64], below: float) -> NDArray[np.float64]:
