@@ -394,7 +394,7 @@ class Tracker:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result.
 
         Given the remembered ``outline``, the nodes held on the first frame that show no
-        colour step now either rest on it where they lie outside it
+        colour step now are put back on it where they lie outside it
         (:mod:`engine.tracking.shape_memory`).
         """
         maps = cues.maps(image, grey, prediction, self.appearance)
@@ -499,7 +499,8 @@ class Tracker:
             is tracked slightly differently from an uninterrupted run (the
             frames after it from that frame's exact result); the contour, the
             options and the colour models stay exact, the shape the search
-            remembers is kept to a hundredth of a pixel.
+            remembers and the shape memory's outline are kept to a hundredth
+            of a pixel.
         """
         previous = self._previous if include_frame else None
         state: dict[str, Any] = {
@@ -592,6 +593,8 @@ class Tracker:
                 search = state.get("search")
                 if search is not None:
                     tracker._memory = Memory.from_state(search, len(tracker._nodes))
+                    if not tracker.options.shape_memory:
+                        tracker._memory.outline = None
                 tracker._previous = (
                     unpack_compact_frame(previous)
                     if isinstance(previous, Mapping)

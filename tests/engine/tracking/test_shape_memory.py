@@ -123,3 +123,21 @@ def test_the_outline_is_part_of_the_state() -> None:
     del old["options"]["shape_memory"]
     del old["search"]["outline"]
     assert not Tracker.from_state(old).options.shape_memory
+
+
+def test_a_state_without_the_option_or_with_a_bad_outline() -> None:
+    clip = make_sequence("no_contrast_stretch", seed=1, length=4)
+    tracker = Tracker(mask_to_contour(clip.masks[0], 64))
+    for frame in clip.frames[:2]:
+        tracker.step(frame)
+    state = tracker.to_state()
+    assert state["search"]["outline"] is not None
+    # the option off: an outline in the state is not used
+    state["options"]["shape_memory"] = False
+    off = Tracker.from_state(state)
+    assert off._memory.outline is None
+    # a malformed outline is a clear error
+    state = tracker.to_state()
+    state["search"]["outline"] = [[0.0, float("nan")]] * 8
+    with pytest.raises(ValueError, match="malformed tracker state"):
+        Tracker.from_state(state)
