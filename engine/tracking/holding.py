@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.geometry import nearest
+
 __all__ = ["DEPTH", "carry", "hold_factors", "side_contrast"]
 
 DEPTH = 6
@@ -63,7 +65,5 @@ def carry(
         return np.zeros(len(target))
     if target is source or np.array_equal(target, source):
         return values.copy()
-    # |t - s|^2 up to the per-target constant |t|^2, as one matrix product
-    d = (source * source).sum(axis=1)[None, :] - 2.0 * (target @ source.T)
-    moved: NDArray[np.float64] = values[np.argmin(d, axis=1)]
+    moved: NDArray[np.float64] = values[nearest(target, source)]
     return moved
