@@ -156,13 +156,22 @@ def nearest(queries: Nodes, points: Nodes) -> NDArray[np.int64]:
 
     Exhaustive, in one compiled pass: for the few hundred points of a contour
     it beats building a k-d tree; ties go to the lowest index.
+
+    Raises
+    ------
+    ValueError
+        If either is not (K, 2), or ``points`` is empty.
     """
     from engine.geometry._kernels import nearest as find
 
-    result: NDArray[np.int64] = find(
-        np.ascontiguousarray(queries, dtype=np.float64),
-        np.ascontiguousarray(points, dtype=np.float64),
-    )
+    q = np.ascontiguousarray(queries, dtype=np.float64)
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    for name, arr in (("queries", q), ("points", p)):
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise ValueError(f"{name} must be (K, 2) [x, y] points; got shape {arr.shape}")
+    if len(p) == 0:
+        raise ValueError("points is empty: there is no nearest point")
+    result: NDArray[np.int64] = find(q, p)
     return result
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -25,3 +26,16 @@ def test_nearest_is_the_argmin_of_the_distances(seed: int, queries: int, points:
 def test_ties_go_to_the_lowest_index() -> None:
     points = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0]])
     assert nearest(np.zeros((1, 2)), points).tolist() == [0]
+
+
+@pytest.mark.parametrize(
+    ("queries", "points", "message"),
+    [
+        (np.zeros((3, 3)), np.zeros((2, 2)), "queries must be"),
+        (np.zeros((3, 2)), np.zeros(4), "points must be"),
+        (np.zeros((3, 2)), np.zeros((0, 2)), "points is empty"),
+    ],
+)
+def test_bad_input_is_a_clear_error(queries: np.ndarray, points: np.ndarray, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        nearest(queries, points)

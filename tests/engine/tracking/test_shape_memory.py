@@ -141,3 +141,8 @@ def test_a_state_without_the_option_or_with_a_bad_outline() -> None:
     state["search"]["outline"] = [[0.0, float("nan")]] * 8
     with pytest.raises(ValueError, match="malformed tracker state"):
         Tracker.from_state(state)
+
+
+def test_the_option_must_be_a_bool() -> None:
+    with pytest.raises(ValueError, match="shape_memory must be true or false"):
+        Tracker(circle_nodes((50.0, 50.0), 20.0, 32), shape_memory="yes")
