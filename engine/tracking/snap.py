@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.special import logsumexp
 
 from engine.geometry import as_nodes, contour_to_mask
 
@@ -320,8 +321,5 @@ def _log_likelihood(model: NDArray[np.float64], pixels: NDArray[np.float64]) -> 
         d = pixels - means[c]
         mahalanobis = np.einsum("mi,mi->m", d @ np.linalg.inv(covariances[c]), d)
         terms[:, c] = np.log(weights[c]) - 0.5 * (mahalanobis + log_det + 3 * np.log(2 * np.pi))
-    top = terms.max(axis=1)
-    finite = np.isfinite(top)
-    out = np.full(len(pixels), -np.inf)
-    out[finite] = top[finite] + np.log(np.exp(terms[finite] - top[finite, None]).sum(axis=1))
+    out: NDArray[np.float64] = logsumexp(terms, axis=1)  # -inf where no component is used
     return out
