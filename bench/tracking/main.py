@@ -15,7 +15,9 @@ tuning (the defaults are fixed); results ``tracking.md``, ``tracking.json``
 (per-frame J, status, timings), ``tracking.png`` and contact sheets
 ``tracking_sheet_<davis|synthetic>_<name>.jpg`` of the clips where efdm
 scores lowest.  Speed: the validation set (else the first set run) is tracked
-first, in this process, one thread, nothing else running; the other sets on
+first, in this process, one thread, nothing else running, twice
+(:data:`~bench.tracking.config.TIMED_PASSES`): the speed figures are the faster
+pass's, and both passes must give the same contours; the other sets on
 ``--workers`` processes (default 2).
 
 Options: ``--quick`` (smoke test: a few short sequences), ``--out DIR``
@@ -46,12 +48,12 @@ from bench.common.benchmark import Benchmark
 from bench.common.log import log
 from bench.common.machine import load_average
 from bench.tracking import cv_report, report
-from bench.tracking.config import FOLDS, FULL, NODES, QUICK, SETS, WORKERS, Config
+from bench.tracking.config import FOLDS, FULL, NODES, QUICK, SETS, TIMED_PASSES, WORKERS, Config
 from bench.tracking.cv import CvResults, parse_axis, parse_nodes, run_cv
 from bench.tracking.plots import plot_scores, write_sheets
 from bench.tracking.pool import Job, track_all
 from bench.tracking.report import Results
-from bench.tracking.run import ClipResult
+from bench.tracking.run import ClipResult, pooled_median_ms, same_tracks
 from bench.tracking.sets import ClipSpec, choose, is_partial, limits
 from bench.tracking.trackers import TRACKERS, Factory, factory
 
@@ -96,9 +98,18 @@ def run_plain(config: Config, args: argparse.Namespace) -> Results:
     timed = next((name for name in TIMED_ORDER if chosen.get(name, ([], None))[0]), None)
     jobs = {name: set_jobs(config, name, specs, trackers) for name, (specs, _) in chosen.items()}
     sets: dict[str, list[ClipResult]] = {}
+    pass_ms: dict[str, list[float]] = {}
+    repeatable = True
     if timed is not None:
-        log(f"{timed}: tracked here, alone (its timings are the speed figures)")
-        sets[timed] = track_all(jobs[timed], workers=1)
+        passes: list[list[ClipResult]] = []
+        for k in range(TIMED_PASSES):
+            log(f"{timed}: tracked here, alone, pass {k + 1} of {TIMED_PASSES} (the speed figures)")
+            passes.append(track_all(jobs[timed], workers=1))
+        sets[timed] = passes[0]
+        pass_ms = {t: [pooled_median_ms(p, t) for p in passes] for t in trackers}
+        repeatable = all(same_tracks(passes[0], p) for p in passes[1:])
+        if not repeatable:
+            log(f"{timed}: the passes gave different contours")
     rest = [job for name in args.sets if name != timed for job in jobs[name]]
     log(f"{len(rest)} more clips on {args.workers} worker process(es)")
     for job, result in zip(rest, track_all(rest, args.workers), strict=True):
@@ -123,6 +134,8 @@ def run_plain(config: Config, args: argparse.Namespace) -> Results:
         notes=notes,
         unavailable=unavailable,
         sheets=sheets,
+        pass_ms=pass_ms,
+        repeatable=repeatable,
     )
 
 

@@ -19,6 +19,8 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from bench.common.data import Clip
 from bench.common.log import log
 from bench.tracking.config import NODES
@@ -224,6 +226,22 @@ def pooled_median_ms(results: Sequence[ClipResult], tracker: str) -> float:
     """Median milliseconds per frame over every step (frames 1..) of ``tracker``."""
     samples = [ms for r in results if tracker in r.runs for ms in r.runs[tracker].step_ms]
     return statistics.median(samples) if samples else math.nan
+
+
+def same_tracks(first: Sequence[ClipResult], second: Sequence[ClipResult]) -> bool:
+    """Whether two passes over the same clips gave every tracker the same contours, bit for bit."""
+    if [c.name for c in first] != [c.name for c in second]:
+        return False
+    for a, b in zip(first, second, strict=True):
+        if a.runs.keys() != b.runs.keys():
+            return False
+        for name, run in a.runs.items():
+            other = b.runs[name].nodes
+            if len(run.nodes) != len(other):
+                return False
+            if not all(np.array_equal(x, y) for x, y in zip(run.nodes, other, strict=True)):
+                return False
+    return True
 
 
 def mean_j(results: Sequence[ClipResult], tracker: str) -> float:

@@ -1,0 +1,43 @@
+"""The tracking benchmark times its timed set in several passes and checks they agree."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bench.tracking.config import TIMED_PASSES
+from bench.tracking.goals import MEDIAN_MS_GOAL, fastest, repeat_goal, speed_goals
+from bench.tracking.run import ClipResult, TrackRun, same_tracks
+
+
+def clip(name: str, shift: float = 0.0) -> ClipResult:
+    nodes = [np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0]]) + shift for _ in range(3)]
+    return ClipResult(name, "davis-val", 3, (8, 8), {"efdm": TrackRun("efdm", 3, 3, nodes=nodes)})
+
+
+def test_the_timed_set_runs_more_than_once() -> None:
+    assert TIMED_PASSES >= 2
+
+
+def test_passes_with_equal_contours_are_the_same_and_a_bit_of_difference_is_not() -> None:
+    assert same_tracks([clip("a"), clip("b")], [clip("a"), clip("b")])
+    assert not same_tracks([clip("a")], [clip("a", shift=1e-12)])
+    assert not same_tracks([clip("a")], [clip("b")])
+    assert not same_tracks([clip("a")], [clip("a"), clip("b")])
+
+
+def test_the_speed_goals_take_each_trackers_fastest_pass() -> None:
+    passes = {"efdm": [12.0, 9.0], "skimage": [80.0, 90.0]}
+    assert fastest(passes, "efdm") == 9.0
+    assert math.isnan(fastest(passes, "static"))
+    speedup, frame = speed_goals(passes, "davis-val 480p")
+    assert speedup.measured == 80.0 / 9.0
+    assert frame.measured == 9.0
+    assert frame.passed is (MEDIAN_MS_GOAL >= 9.0)
+    assert "12.00 / 9.00" in frame.shown
+
+
+def test_passes_that_differ_fail_the_repeat_goal() -> None:
+    assert repeat_goal(True, 2, "here").passed
+    assert not repeat_goal(False, 2, "here").passed
