@@ -18,7 +18,7 @@ from bench.common.report import (
     load_line,
     md_table,
 )
-from bench.tracking.config import NODES, Config
+from bench.tracking.config import NODES, TIMED_PASSES, Config
 from bench.tracking.goals import accuracy_goals, repeat_goal, speed_goals
 from bench.tracking.metrics import REACQUIRE_FRAMES, SetScore
 from bench.tracking.run import ClipResult, mean_j
@@ -245,7 +245,10 @@ def notes_section(results: Results) -> str:
         "(`cv2.setNumThreads(1)`; OMP/OPENBLAS/MKL/NUMBA_NUM_THREADS=1). The speed figures "
         "come from one set tracked in this process before any worker starts, each tracker "
         "uninterrupted through a clip, the trackers one after the other in an order that "
-        f"alternates from clip to clip. The other sets are tracked by {results.workers} worker "
+        f"alternates from clip to clip, {TIMED_PASSES} times over: each tracker's fastest "
+        "pass gives its figures (a slower pass measures the machine's other work, as "
+        "`timeit` assumes), and the passes must give the same contours. "
+        f"The other sets are tracked by {results.workers} worker "
         "process(es) at once: their times (in the JSON) share the machine and are "
         "indicative only.",
         f"- skimage baseline: `skimage.filters.gaussian(grey, sigma={SKIMAGE_SIGMA:g})` then "
