@@ -23,7 +23,8 @@ pass's, and both passes must give the same contours; the other sets on
 Options: ``--quick`` (smoke test: a few short sequences), ``--out DIR``
 (default ``bench/results/``), ``--sets davis-train,davis-val,synthetic``,
 ``--sequences a,b`` (DAVIS sequences / synthetic conditions),
-``--trackers efdm,static,skimage``, ``--workers N``.
+``--trackers efdm,static,skimage``, ``--workers N``, ``--seeds N`` (synthetic seeds
+0..N-1; default 3: seeds beyond them are conditions the defaults never saw).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -36,6 +37,7 @@ chosen on all the training sequences (not tuned on); results
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -156,6 +158,8 @@ def run_tuning(config: Config, args: argparse.Namespace) -> CvResults:
 def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
     """The plain run, or the cross-validation with ``--cv``."""
     cv2.setNumThreads(1)
+    if args.seeds is not None:
+        config = dataclasses.replace(config, synthetic_seeds=args.seeds)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -217,8 +221,8 @@ def count(least: int) -> Any:
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
-    """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds`` and
-    ``--nodes``."""
+    """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
+    ``--seeds`` and ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -238,6 +242,12 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         help="cross-validate efdm's option over these values (JSON); repeat for a grid",
     )
     parser.add_argument("--folds", type=count(2), default=FOLDS, help="cross-validation folds")
+    parser.add_argument(
+        "--seeds",
+        type=count(1),
+        default=None,
+        help="seeds 0..N-1 of every synthetic condition (default: 3, with --quick 1)",
+    )
     parser.add_argument(
         "--nodes",
         type=parse_nodes,
