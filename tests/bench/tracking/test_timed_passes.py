@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -41,3 +43,15 @@ def test_the_speed_goals_take_each_trackers_fastest_pass() -> None:
 def test_passes_that_differ_fail_the_repeat_goal() -> None:
     assert repeat_goal(True, 2, "here").passed
     assert not repeat_goal(False, 2, "here").passed
+
+
+def test_a_quick_synthetic_run_times_twice_and_takes_the_seeds_asked_for(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    args = ["--quick", "--sets", "synthetic", "--trackers", "efdm", "--seeds", "2"]
+    assert BENCHMARK.main([*args, "--sequences", "plain@1", "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "tracking.json").read_text())
+    assert [clip["name"] for clip in data["sets"]["synthetic"]] == ["plain@1"]
+    assert len(data["timed_pass_median_ms"]["efdm"]) == TIMED_PASSES
+    assert data["timed_passes_identical"] is True
+    assert "the same contours in each of 2 passes" in (tmp_path / "tracking.md").read_text()
