@@ -27,7 +27,11 @@ trajectory (translation plus mild rotation) over a background.  Each of
   by 20-70, while the trunk tilts by 45-90 (full swing by frame 35);
 - ``"fast_40"``: 38-44 px/frame (about 40 on average: a bounce off the frame's edges shortens
   that frame's step), turning smoothly;
-- ``"small"``: 20-40 px across in every frame (radius 12.5-17 px), 2-6 px/frame.
+- ``"small"``: 20-40 px across in every frame (radius 12.5-17 px), 2-6 px/frame;
+- ``"lighting_change"``: the light changes gradually over the sequence: from the first
+  frame to the last it dims to 55-70 % of its brightness, with a colour cast that moves each
+  channel by up to 15 % more or less (a cloud, a dimmed lamp, a camera's exposure or white
+  balance drifting).
 
 Conventions: points are ``[x, y]`` pixels (x = column, y = row, a pixel's
 centre has integer coordinates), frames are H x W x 3 BGR ``uint8`` as OpenCV
@@ -53,9 +57,10 @@ one with the same seed, except where the timing is spread over the whole
 sequence: the growth or shrinkage of ``"scale_change"`` (a factor 2 in radius
 from first to last frame), the pass of the ``"occluder"`` bar (clear of the
 object in the first and last frames), where ``"clutter"`` places the
-distractors it puts on the object's path, and when ``"hidden"`` hides the
-object (its gap is centred).  New conditions are appended to
-:data:`CONDITIONS`: a condition's random stream is seeded with its index.
+distractors it puts on the object's path, when ``"hidden"`` hides the
+object (its gap is centred), and ``"lighting_change"``'s change of light.  New
+conditions are appended to :data:`CONDITIONS`: a condition's random stream is seeded
+with its index.
 """
 
 from __future__ import annotations
@@ -90,6 +95,7 @@ CONDITIONS: tuple[str, ...] = (
     "articulated",
     "fast_40",
     "small",
+    "lighting_change",
 )
 
 MIN_SIZE = 96
@@ -355,6 +361,11 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
     blur = cond == "motion_blur"
     noise_lut = _painting.gauss_table() * np.float32(knobs.noise)
 
+    light = None
+    if cond == "lighting_change":  # per frame and channel, 1 in the first frame
+        change = rng.uniform(-0.45, -0.30) + rng.uniform(-0.15, 0.15, 3)
+        light = (1.0 + np.outer(t / max(T - 1, 1), change)).astype(np.float32)
+
     frames: list[U8] = []
     masks: list[U8] = []
     for i in range(T):
@@ -418,6 +429,8 @@ def _render(cond: str, rng: np.random.Generator, T: int, H: int, W: int) -> Synt
             _painting.paint(img, bar, _OCCLUDER_BGR)
         if i in hidden:
             _painting.paint_image(img, hider, hider_bg)
+        if light is not None:
+            img *= light[i]
         img += noise_lut[rng.integers(0, 65536, (H, W, 3), dtype=np.uint16)]
         np.clip(img, 0, 255, out=img)
         frame = np.rint(img).astype(np.uint8)

@@ -257,7 +257,10 @@ EXISTING = {
 (bit-exact: a numpy or OpenCV upgrade that changes the rendering changes them too).  The
 masks are checked by their rule (:func:`test_a_mask_holds_the_pixels_covered_at_least_half`):
 until 2026-11-26 they held every pixel the outline touched, half a pixel more all round."""
-NEW = ("no_contrast_stretch", "hidden", "thin_parts", "articulated", "fast_40", "small")
+NEW = (
+    *("no_contrast_stretch", "hidden", "thin_parts", "articulated", "fast_40", "small"),
+    "lighting_change",
+)
 DISK_11 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11))
 
 
@@ -504,3 +507,20 @@ def test_no_contrast_stretch_has_a_quarter_to_a_third_of_the_outline_without_an_
     plain = full("plain", seed, 8)
     step, length = contrast_along_outline(plain.frames[0], plain.masks[0])
     assert longest_run(step < 10.0, length) == 0.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_lighting_change_dims_the_light_with_a_cast_and_leaves_the_masks(seed: int) -> None:
+    seq = make_sequence("lighting_change", seed=seed, length=20, size=(240, 320))
+    outside = seq.masks[0] == 0
+    first = seq.frames[0][outside].astype(np.float64).mean(axis=0)
+    last = seq.frames[-1][outside].astype(np.float64).mean(axis=0)
+    ratio = last / first  # the background is still: the ratio is the light's change
+    assert np.all(ratio > 0.35)
+    assert np.all(ratio < 0.90)
+    assert 0.5 <= float(np.mean(ratio)) <= 0.75
+    assert float(ratio.max() - ratio.min()) > 0.01  # a cast, not only a dimming
+    middle = seq.frames[10][outside].astype(np.float64).mean(axis=0) / first
+    assert np.all(middle < 1.0)
+    assert np.all(middle > ratio)  # gradual: half way there at mid-sequence
+    assert all(m.any() for m in seq.masks)
