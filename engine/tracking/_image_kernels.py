@@ -336,9 +336,8 @@ def side_contrast(
     for k in range(nodes.shape[0]):
         x, y = nodes[k, 0] - origin_x, nodes[k, 1] - origin_y
         nx, ny = normals[k, 0], normals[k, 1]
-        sides = np.zeros(2)
-        for side in range(2):
-            sign = -1.0 if side == 0 else 1.0
+        inside, outside = 0.0, 0.0
+        for sign in (-1.0, 1.0):
             total = 0.0
             for step in range(1, depth + 1):
                 j = int(np.rint(x + sign * step * nx))
@@ -347,6 +346,9 @@ def side_contrast(
                     total += float(probability[i, j])
                 else:
                     total += 0.5
-            sides[side] = total / depth
-        out[k] = sides[0] - sides[1]
+            if sign < 0:
+                inside = total / depth
+            else:
+                outside = total / depth
+        out[k] = inside - outside
     return out
