@@ -77,6 +77,11 @@ class Results:
     pass_ms: dict[str, list[float]] = field(default_factory=dict)
     repeatable: bool = True
 
+    @property
+    def passes(self) -> int:
+        """How many times the timed set was tracked (1 when nothing was timed)."""
+        return max((len(v) for v in self.pass_ms.values()), default=1)
+
 
 def efdm_score(clips: Sequence[ClipResult]) -> SetScore:
     """efdm's scores on a set."""
@@ -98,9 +103,8 @@ def goals(results: Results) -> list[GoalLine]:
     if results.timed is not None:
         where = speed_where(results.timed)
         lines += speed_goals(results.pass_ms, where)
-        passes = max((len(v) for v in results.pass_ms.values()), default=1)
-        if passes > 1:
-            lines.append(repeat_goal(results.repeatable, passes, where))
+        if results.passes > 1:
+            lines.append(repeat_goal(results.repeatable, results.passes, where))
     return lines
 
 
@@ -168,7 +172,7 @@ def speed_section(results: Results) -> str:
         [
             f"## Speed: {results.timed} (median ms over frames 1..T-1; step calls only, one "
             "thread, tracked in this process with no worker running)",
-            f"Tracked {max((len(v) for v in results.pass_ms.values()), default=1)} times, "
+            f"Tracked {results.passes} times, "
             f"pass by pass (median ms per frame): {passes}; the goals take each tracker's "
             f"fastest pass, and the passes gave {same}.  The table is the first pass.",
             timing_table(results.sets[results.timed], results.trackers),

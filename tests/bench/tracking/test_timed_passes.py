@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from bench.tracking.config import TIMED_PASSES
 from bench.tracking.goals import MEDIAN_MS_GOAL, fastest, repeat_goal, speed_goals
@@ -55,3 +56,12 @@ def test_a_quick_synthetic_run_times_twice_and_takes_the_seeds_asked_for(tmp_pat
     assert len(data["timed_pass_median_ms"]["efdm"]) == TIMED_PASSES
     assert data["timed_passes_identical"] is True
     assert "the same contours in each of 2 passes" in (tmp_path / "tracking.md").read_text()
+
+
+def test_seeds_below_one_are_refused(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    with pytest.raises(SystemExit) as exit_info:
+        BENCHMARK.main(["--quick", "--seeds", "0", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert not (tmp_path / "tracking.json").exists()
