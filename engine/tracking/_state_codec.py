@@ -56,6 +56,22 @@ def unpack_counts(text: str, rows: int, sizes: tuple[int, ...]) -> NDArray[np.fl
     return counts
 
 
+def pack_raw(values: NDArray[Any]) -> str:
+    """Base64 of zlib-compressed bytes of an array (its dtype and shape are the reader's)."""
+    return base64.b64encode(zlib.compress(np.ascontiguousarray(values).tobytes())).decode("ascii")
+
+
+def unpack_raw(text: str, dtype: np.dtype[Any] | type, size: int | None) -> NDArray[Any]:
+    """Inverse of :func:`pack_raw`: a 1-D array of ``dtype``, of ``size`` items (None: any
+    number up to 2^22); ValueError otherwise."""
+    kind = np.dtype(dtype)
+    limit = (1 << 22 if size is None else size) * kind.itemsize
+    raw = _inflate(text, limit)
+    if len(raw) > limit or len(raw) % kind.itemsize or (size is not None and len(raw) != limit):
+        raise ValueError("packed array has the wrong size")
+    return np.frombuffer(raw, dtype=kind).copy()
+
+
 def pack_image(image: NDArray[np.uint8]) -> str:
     """A single-channel uint8 image as base64 PNG (lossless)."""
     ok, png = cv2.imencode(".png", image)

@@ -124,6 +124,13 @@ class TrackerOptions:
         frame; cross-validated on the thirty training sequences with each
         tracked from five node counts, chosen in all five folds, J 0.689
         against 0.685).
+    lighting : bool
+        Measure the change of light since the first frame, channel by
+        channel, and undo what exceeds 5 % before the colours are read
+        (:mod:`engine.tracking.lighting`; default True: without it a light
+        dimming by a third over a few seconds loses the object; on the
+        thirty training sequences, whose light hardly changes, it changes
+        little: cross-validated, see ``bench/results/tracking_cv.md``).
 
     Raises
     ------
@@ -149,6 +156,7 @@ class TrackerOptions:
     motion_contrast: bool = True
     figure_ground: bool = True
     shape_memory: bool = True
+    lighting: bool = True
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -183,6 +191,6 @@ class TrackerOptions:
         band = self.cut_band
         if isinstance(band, bool) or not isinstance(band, int) or not 0 <= band <= MAX_CUT_BAND:
             raise ValueError(f"cut_band must be an integer in [0, {MAX_CUT_BAND}]; got {band!r}")
-        for name in ("occlusion", "motion_contrast", "figure_ground", "shape_memory"):
+        for name in ("occlusion", "motion_contrast", "figure_ground", "shape_memory", "lighting"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false; got {getattr(self, name)!r}")

@@ -60,6 +60,7 @@ from engine.tracking.confidence import (
 from engine.tracking.covering import cover_maps, covered_share
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.holding import carry, hold_factors, side_contrast
+from engine.tracking.lighting import Lighting
 from engine.tracking.maps import roi_box
 from engine.tracking.memory import Memory
 from engine.tracking.motion_contrast import motion_ratio, with_motion
@@ -218,6 +219,7 @@ class Tracker:
         self._previous: NDArray[np.uint8] | None = None
         self.frame_index = -1
         self._memory = Memory.fresh(self._nodes)
+        self._lighting = Lighting()
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -329,6 +331,7 @@ class Tracker:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
             return self._start(image, grey)
+        raw = image
         # the crowd's covered pixels: read by the motion on the previous frame and by
         # the cue maps on this one (the objects in front, where they were and are)
         prediction = self.motion.predict(
@@ -339,6 +342,8 @@ class Tracker:
             object_weight=self.cues.object_weight,
             **crowd.motion_keywords(),
         )
+        if self.options.lighting:  # the frame in the first frame's light
+            image = self._lighting.compensate(raw, prediction.matrix)
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
         memory = self._memory
         hold = memory.hold
@@ -375,6 +380,8 @@ class Tracker:
             signal = confidence = 0.0
         self._nodes = nodes
         self._previous = grey
+        if self.options.lighting:
+            self._lighting.learn(raw, nodes)  # its colours as taken, to compare with the next
         if share < BEHIND_FROM:  # another object's colours are not this one's
             if signal >= LEARN_ABOVE:
                 self.appearance.update(image, self._nodes)
@@ -455,6 +462,8 @@ class Tracker:
         self.appearance.fit(image, self._nodes)
         self.cues.start(image, self._nodes, self.appearance)
         self.segmentation.start(image, self._nodes)
+        if self.options.lighting:
+            self._lighting.start(image, self._nodes)
         _, (x0, y0, x1, y1) = roi_box(image.shape, self._nodes, self.options.search_radius)
         contrast = side_contrast(
             self.appearance.probability(image[y0:y1, x0:x1]), (x0, y0), self._nodes
@@ -500,7 +509,9 @@ class Tracker:
             frames after it from that frame's exact result); the contour, the
             options and the colour models stay exact, the shape the search
             remembers and the shape memory's outline are kept to a hundredth
-            of a pixel.
+            of a pixel, and the lighting keeps its gains but not the colours
+            it compares the next frame with (that frame measures no change of
+            light).
         """
         previous = self._previous if include_frame else None
         state: dict[str, Any] = {
@@ -513,6 +524,9 @@ class Tracker:
             if previous is None
             else {name: _stage_state(getattr(self, name), compact) for name in STAGES},
             "search": None if previous is None else self._memory.to_state(),
+            "lighting": None
+            if previous is None or not self.options.lighting
+            else self._lighting.to_state(compact=compact),
         }
         if previous is not None and compact:
             search = state["search"]  # the shape searched for, to a hundredth of a pixel
@@ -572,6 +586,7 @@ class Tracker:
             options.setdefault("motion_contrast", False)
             options.setdefault("figure_ground", False)
             options.setdefault("shape_memory", False)  # and before the shape memory
+            options.setdefault("lighting", False)  # and before the lighting
             tracker = cls(
                 state["nodes"],
                 motion=motion,
@@ -595,6 +610,9 @@ class Tracker:
                     tracker._memory = Memory.from_state(search, len(tracker._nodes))
                     if not tracker.options.shape_memory:
                         tracker._memory.outline = None
+                lighting = state.get("lighting")
+                if lighting is not None and tracker.options.lighting:
+                    tracker._lighting = Lighting.from_state(lighting)
                 tracker._previous = (
                     unpack_compact_frame(previous)
                     if isinstance(previous, Mapping)
