@@ -19,7 +19,7 @@ is a cut, not a change of light, and is counted at the end of the range)."""
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _median(histogram: NDArray[np.int64], total: int) -> int:
+def _median(histogram: NDArray[np.int32], total: int) -> int:
     """Lower median of the values counted in ``histogram`` (bin k is value k - REACH)."""
     half = (total + 1) // 2
     seen = 0
@@ -47,6 +47,70 @@ def grid_sample(image: NDArray[np.uint8], grid: int) -> NDArray[np.uint8]:
 
 
 @nb.njit(cache=True, nogil=True)
+def interior(
+    inside: NDArray[np.uint8],
+    reach: int,
+    origin: tuple[int, int],
+    stride: int,
+    image: NDArray[np.uint8],
+) -> tuple[NDArray[np.int64], NDArray[np.uint8]]:
+    """The grid points whose (2 reach + 1)^2 neighbourhood in ``inside`` (a mask on the grid,
+    1 inside the contour; beyond its edge counts as inside) is all inside: their frame
+    ``[x, y]`` (``origin`` + ``stride`` x grid index) and their colours in ``image``."""
+    rows, cols = inside.shape
+    c = image.shape[2]
+    points = np.empty((rows * cols, 2), np.int64)
+    colours = np.empty((rows * cols, c), np.uint8)
+    m = 0
+    for i in range(rows):
+        for j in range(cols):
+            core = True
+            for di in range(max(0, i - reach), min(rows, i + reach + 1)):
+                for dj in range(max(0, j - reach), min(cols, j + reach + 1)):
+                    if inside[di, dj] == 0:
+                        core = False
+                        break
+                if not core:
+                    break
+            if not core:
+                continue
+            x, y = origin[0] + stride * j, origin[1] + stride * i
+            points[m, 0], points[m, 1] = x, y
+            for ch in range(c):
+                colours[m, ch] = image[y, x, ch]
+            m += 1
+    return points[:m], colours[:m]
+
+
+@nb.njit(cache=True, nogil=True)
+def carried(
+    points: NDArray[np.int64],
+    colours: NDArray[np.uint8],
+    matrix: NDArray[np.float64],
+    image: NDArray[np.uint8],
+) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """The colours of ``points`` ((K, 2) ``[x, y]``, ``colours`` (K, C) where they were) and of
+    the nearest pixels of ``image`` (H x W x C) they are carried to by the 2 x 3 ``matrix``,
+    for the points carried inside the image: (M, C) before and (M, C) after."""
+    h, w, c = image.shape
+    k = points.shape[0]
+    before = np.empty((k, c), np.uint8)
+    after = np.empty((k, c), np.uint8)
+    m = 0
+    for i in range(k):
+        x, y = points[i, 0], points[i, 1]
+        u = round(matrix[0, 0] * x + matrix[0, 1] * y + matrix[0, 2])
+        v = round(matrix[1, 0] * x + matrix[1, 1] * y + matrix[1, 2])
+        if u < 0 or v < 0 or u >= w or v >= h:
+            continue
+        for ch in range(c):
+            before[m, ch] = colours[i, ch]
+            after[m, ch] = image[v, u, ch]
+        m += 1
+    return before[:m], after[:m]
+
+
+@nb.njit(cache=True, nogil=True)
 def ratio_step(
     before: NDArray[np.uint8],
     after: NDArray[np.uint8],
@@ -60,7 +124,7 @@ def ratio_step(
     ``before`` and ``after`` are (K, C) uint8 colours of the same K points in two
     frames.  A point counts where every channel of both is strictly between
     ``dark`` and ``bright`` (clipped or noise-dominated levels say nothing about
-    the light).  First the median ratio of all of them; then, the median of those
+    the light).  First the median ratio of all of them; then, the mean of those
     within ``moved`` (in ``table``'s units) of it on every channel: a point whose
     colour changed otherwise moved, or something moved over it.  The mean and not
     a second median, because a step of light below one level leaves many points'
@@ -74,8 +138,8 @@ def ratio_step(
         (C,) float64 natural-log ratios (0 where ``count`` is 0).
     """
     k, c = before.shape
-    ratios = np.empty((k, c), np.int64)
-    first = np.zeros((c, 2 * REACH + 1), np.int64)
+    ratios = np.empty((k, c), np.int32)
+    first = np.zeros((c, 2 * REACH + 1), np.int32)
     total = 0
     for i in range(k):
         ok = True

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.tracking.pieces import PiecesTracker
-from engine.tracking.shared import Crowd, SharedMotion
+from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
 
 __all__ = ["Remote", "Workers", "contours_of", "probability_of", "restore", "started"]
@@ -143,7 +143,11 @@ class Workers:
             view[...] = part
             offset += part.nbytes
         layout: Layout = (image.shape, grey.shape, None if flow is None else flow.shape)
-        motion = None if shared is None else (shared.background, flow is not None)
+        motion = None
+        if shared is not None:
+            light = shared.light
+            lit = None if light is None else (light.sample, light.step)
+            motion = (shared.background, flow is not None, lit)
         for index in range(self.count):
             self.send(index, ("frame", block.name, layout, motion))
         self.gather(range(self.count))
@@ -290,14 +294,15 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
                 offset += grey.nbytes
                 shared = None
                 if motion is not None:
-                    background, has_flow = motion
+                    background, has_flow, lit = motion
                     last = np.ndarray(grey_shape, np.uint8, buffer, offset).copy()
                     offset += last.nbytes
                     flow = None
                     if has_flow:
                         vectors = np.ndarray(flow_shape, np.float32, buffer, offset).copy()
                         flow = FlowField(FramePair.whole(last, grey), vectors)
-                    shared = SharedMotion(last, grey, background, flow)
+                    light = None if lit is None else SharedLight(*lit)
+                    shared = SharedMotion(last, grey, background, flow, light)
                 value = None
             elif kind == "step":
                 assert image is not None

@@ -98,8 +98,23 @@ class Lighting:
         self._sample = _grid_sample(image)
         self.learn(image, nodes)
 
+    @staticmethod
+    def whole(
+        previous: NDArray[np.uint8] | None, image: NDArray[np.uint8]
+    ) -> tuple[NDArray[np.uint8], NDArray[np.float64] | None]:
+        """The frame on the grid, and the whole frame's change of light since ``previous``
+        (the previous frame on the grid; None: not measurable), as :meth:`compensate`
+        measures it: what several objects' trackers of one frame share."""
+        sample = _grid_sample(image)
+        if previous is None or previous.shape != sample.shape:
+            return sample, None
+        return sample, _step(previous, sample)
+
     def compensate(
-        self, image: NDArray[np.uint8], matrix: NDArray[np.float64]
+        self,
+        image: NDArray[np.uint8],
+        matrix: NDArray[np.float64],
+        whole: tuple[NDArray[np.uint8], NDArray[np.float64] | None] | None = None,
     ) -> NDArray[np.uint8]:
         """Measure the light's change since the previous frame; ``image`` in the first one's light.
 
@@ -110,6 +125,9 @@ class Lighting:
         matrix : numpy.ndarray
             2 x 3 similarity mapping the previous frame's ``[x, y]`` to this
             one's: the object's motion (:class:`~engine.tracking.stages.Prediction`).
+        whole : tuple, optional
+            :meth:`whole` of this tracker's previous frame and ``image``, measured
+            once for several trackers (else measured here).
 
         Returns
         -------
@@ -117,14 +135,12 @@ class Lighting:
             ``image`` itself while the change is within :data:`ABSORBED`; else a
             new image with each channel scaled back (clipped to 0-255).
         """
-        levels = _levels(image)
-        sample = _grid_sample(image)
-        previous, self._sample = self._sample, sample
-        if previous is not None and previous.shape == sample.shape:
-            whole = _step(previous, sample)
-            inner = self._object_step(levels, matrix)
-            if whole is not None and inner is not None and len(whole) == len(self.log_gains):
-                self.log_gains -= _minmod(whole, inner)
+        known = self._sample is not None
+        self._sample, frame_step = self.whole(self._sample, image) if whole is None else whole
+        if known and frame_step is not None and len(frame_step) == len(self.log_gains):
+            inner = self._object_step(_levels(image), matrix)
+            if inner is not None:
+                self.log_gains -= _minmod(frame_step, inner)
         return self.apply(image)
 
     def apply(self, image: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -145,6 +161,8 @@ class Lighting:
     def learn(self, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> None:
         """Remember the colours of the object's interior (``nodes``: its contour on ``image``,
         the frame as taken), to be compared with the next frame."""
+        from engine.tracking._lighting_kernel import interior
+
         self._points = self._colours = None
         levels = _levels(image)
         height, width = levels.shape[:2]
@@ -153,32 +171,29 @@ class Lighting:
         y1 = min(int(np.ceil(nodes[:, 1].max())) + 1, height)
         if x1 - x0 < 1 or y1 - y0 < 1:
             return
-        # a grid of about OBJECT_POINTS over the box; its points inside the contour
+        # a grid of about OBJECT_POINTS over the box; its points INSET inside the contour
         stride = max(1, math.isqrt((x1 - x0) * (y1 - y0) // OBJECT_POINTS))
         shape = ((y1 - y0 - 1) // stride + 1, (x1 - x0 - 1) // stride + 1)
         inside = contour_to_mask((nodes - [x0, y0]) / stride, shape)
         reach = -(-INSET // stride)  # ceil: at least INSET pixels
-        core = cv2.erode(inside, np.ones((2 * reach + 1, 2 * reach + 1), np.uint8))
-        rows, cols = np.nonzero(core)
-        if len(rows) < MIN_POINTS:
-            return
-        xs, ys = x0 + cols * stride, y0 + rows * stride
-        self._points = np.stack([xs, ys], axis=1)
-        self._colours = np.asarray(levels[ys, xs], dtype=np.uint8)
+        frame = np.ascontiguousarray(levels)
+        points, colours = interior(inside, reach, (int(x0), int(y0)), stride, frame)
+        if len(points) >= MIN_POINTS:
+            self._points, self._colours = points, colours
 
     def _object_step(
         self, levels: NDArray[np.uint8], matrix: NDArray[np.float64]
     ) -> NDArray[np.float64] | None:
-        """The median ratio over the remembered interior points carried by ``matrix``."""
+        """The ratio over the remembered interior points carried by ``matrix``."""
+        from engine.tracking._lighting_kernel import carried
+
         if self._points is None or self._colours is None:
             return None
-        moved = np.rint(self._points @ matrix[:, :2].T + matrix[:, 2]).astype(np.int64)
-        height, width = levels.shape[:2]
-        within = (moved >= 0).all(axis=1) & (moved[:, 0] < width) & (moved[:, 1] < height)
         if self._colours.shape[1] != levels.shape[2]:
             return None
-        after = levels[moved[within, 1], moved[within, 0]]
-        return _step(self._colours[within], after)
+        image = np.ascontiguousarray(levels)
+        before, after = carried(self._points, self._colours, np.ascontiguousarray(matrix), image)
+        return _step(before, after)
 
     def to_state(self, *, compact: bool = False) -> dict[str, Any]:
         """JSON-able state; ``compact``: the gains only (the next frame then measures no step)."""

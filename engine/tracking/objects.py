@@ -43,8 +43,9 @@ from engine.tracking._processes import (
 )
 from engine.tracking.confidence import Status
 from engine.tracking.covering import Order, Silhouette, fronts
+from engine.tracking.lighting import Lighting
 from engine.tracking.pieces import PiecesTracker
-from engine.tracking.shared import Crowd, SharedMotion
+from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
 
 __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
@@ -122,6 +123,8 @@ class ObjectsTracker:
         self._workers = Workers(workers) if processes else None
         # the last grey frame, for the whole-frame measurements (engine.tracking.shared)
         self._previous: NDArray[np.uint8] | None = None
+        # and the last colour frame on the lighting's grid (engine.tracking.lighting)
+        self._light: NDArray[np.uint8] | None = None
         # made on first use with workers > 1 and kept (a pool a frame cost more than the
         # second thread gave); its idle threads end with the tracker, or with close()
         self._pool: ThreadPoolExecutor | None = None
@@ -224,7 +227,7 @@ class ObjectsTracker:
             return probability_of(self.trackers[key], image[y0:y1, x0:x1])
 
         in_front, self._order = fronts(silhouettes, probability, self._order)
-        shared = self._shared(grey, silhouettes)
+        shared = self._shared(image, grey, silhouettes)
         if self._workers is not None and self.trackers:
             self._workers.frame(image, grey, shared)
         self._previous = grey
@@ -248,17 +251,27 @@ class ObjectsTracker:
         return out
 
     def _shared(
-        self, grey: NDArray[np.uint8], silhouettes: Mapping[Hashable, Silhouette]
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        silhouettes: Mapping[Hashable, Silhouette],
     ) -> SharedMotion | None:
-        """The whole frame's background motion and flow, when two or more objects go on
-        from the last frame (one object measures around itself, as a tracker alone)."""
-        previous = self._previous
+        """The whole frame's background motion, flow and change of light, when two or more
+        objects go on from the last frame (one object measures around itself, as a tracker
+        alone)."""
+        previous, light = self._previous, None
+        if len(silhouettes) >= 2:
+            sample, step = Lighting.whole(self._light, image)
+            light = SharedLight(sample, step) if self._light is not None else None
+            self._light = sample
+        else:
+            self._light = None
         if len(silhouettes) < 2 or previous is None or previous.shape != grey.shape:
             return None
         excluded = np.zeros(grey.shape, np.bool_)
         for silhouette in silhouettes.values():
             silhouette.paint(excluded)
-        return SharedMotion.measure(previous, grey, excluded)
+        return SharedMotion.measure(previous, grey, excluded, light)
 
     def _step_wave(
         self,

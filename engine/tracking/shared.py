@@ -8,6 +8,7 @@ motion, for the figure-ground split of the object's motion and for the motion co
 contour (:mod:`engine.tracking.flow`).  With several objects, both are measured once over
 the whole frame (the background's corners sought outside every object's silhouette) and
 read by every tracker: a whole 640 x 480 frame costs about what two objects' crops did.
+So is the whole frame's part of the change of light (:mod:`engine.tracking.lighting`).
 A tracker alone measures around its contour, as it was tuned.
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
@@ -23,7 +24,24 @@ from engine.tracking.background import frame_background
 from engine.tracking.flow import FlowField, dense_flow
 from engine.tracking.motion import FramePair
 
-__all__ = ["Crowd", "SharedMotion"]
+__all__ = ["Crowd", "SharedLight", "SharedMotion"]
+
+
+@dataclass(frozen=True, slots=True)
+class SharedLight:
+    """The whole frame's part of the change of light (:meth:`engine.tracking.Lighting.whole`).
+
+    Attributes
+    ----------
+    sample : numpy.ndarray
+        (K, C) uint8: the current colour frame on the lighting's grid.
+    step : numpy.ndarray or None
+        (C,) float64 log ratio of the light from the previous colour frame to this one
+        over the whole frame; None when not measurable.
+    """
+
+    sample: NDArray[np.uint8]
+    step: NDArray[np.float64] | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,21 +58,31 @@ class SharedMotion:
     flow : FlowField or None
         Dense optical flow over the whole frame at half resolution (None for a
         frame under 4 pixels).
+    light : SharedLight or None
+        The whole frame's change of light between the two colour frames (None:
+        each tracker measures its own).
     """
 
     previous: NDArray[np.uint8]
     current: NDArray[np.uint8]
     background: NDArray[np.float64] | None
     flow: FlowField | None
+    light: SharedLight | None = None
 
     @classmethod
     def measure(
-        cls, previous: NDArray[np.uint8], current: NDArray[np.uint8], excluded: NDArray[np.bool_]
+        cls,
+        previous: NDArray[np.uint8],
+        current: NDArray[np.uint8],
+        excluded: NDArray[np.bool_],
+        light: SharedLight | None = None,
     ) -> SharedMotion:
         """Measure both between ``previous`` and ``current``, the ``excluded`` pixels (H x W
-        bool: the objects' silhouettes in ``previous``) left out of the background's fit."""
+        bool: the objects' silhouettes in ``previous``) left out of the background's fit;
+        ``light`` measured by the caller between the colour frames."""
         background = frame_background(previous, current, excluded)
-        return cls(previous, current, background, dense_flow(FramePair.whole(previous, current)))
+        flow = dense_flow(FramePair.whole(previous, current))
+        return cls(previous, current, background, flow, light)
 
     def applies_to(self, previous: NDArray[np.uint8] | None, current: NDArray[np.uint8]) -> bool:
         """Whether these were measured between ``previous`` and ``current`` (the same

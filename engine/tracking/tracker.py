@@ -343,7 +343,9 @@ class Tracker:
             **crowd.motion_keywords(),
         )
         if self.options.lighting:  # the frame in the first frame's light
-            image = self._lighting.compensate(raw, prediction.matrix)
+            light = None if crowd.shared is None else crowd.shared.light
+            whole = None if light is None else (light.sample, light.step)
+            image = self._lighting.compensate(raw, prediction.matrix, whole)
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it
         memory = self._memory
         hold = memory.hold

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 
 import cv2
 import numpy as np
@@ -227,3 +227,48 @@ def test_without_the_option_the_state_has_no_lighting_and_older_states_have_it_o
     del state["options"]["lighting"]  # written before the option
     del state["lighting"]
     assert Tracker.from_state(state).options.lighting is False
+
+
+def test_the_whole_frame_measured_once_for_several_trackers_is_the_same() -> None:
+    base = scene(5)
+    own, given = Lighting(), Lighting()
+    first = lit(base, np.ones(3))
+    own.start(first, NODES)
+    given.start(first, NODES)
+    previous = Lighting.whole(None, first)[0]
+    for t in range(1, 15):
+        frame = lit(base, np.full(3, 1.0 - 0.02 * t))
+        measured = Lighting.whole(previous, frame)
+        previous = measured[0]
+        np.testing.assert_array_equal(
+            own.compensate(frame, STILL), given.compensate(frame, STILL, measured)
+        )
+        own.learn(frame, NODES)
+        given.learn(frame, NODES)
+        np.testing.assert_array_equal(own.log_gains, given.log_gains)
+    assert own.log_gains.min() > 0.2
+
+
+def crowd_under_dimming(lighting: bool) -> float:
+    """The worst of three objects' mean IoU in a session while the light dims by a third."""
+    from engine.testing.crowd import make_crowd
+    from engine.tracking import ObjectsTracker
+
+    crowd = make_crowd(seed=0, length=24)
+    keys: list[Hashable] = [0, 1, 2]
+    outlines = {k: mask_to_contour(crowd.masks[int(str(k))][0], 64) for k in keys}
+    tracker = ObjectsTracker(outlines, lighting=lighting)
+    ious: dict[Hashable, list[float]] = {k: [] for k in keys}
+    for i, frame in enumerate(crowd.frames):
+        t = i / (len(crowd.frames) - 1)
+        dimmed = lit(frame.astype(np.float32), np.array([1 - 0.45 * t, 1 - 0.35 * t, 1 - 0.3 * t]))
+        for result in tracker.step(dimmed):
+            mask = crowd.masks[int(str(result.id))][i]
+            ious[result.id].append(mask_iou(contour_to_mask(result.contours[0], mask.shape), mask))
+    return min(float(np.mean(v[1:])) for v in ious.values())
+
+
+def test_several_objects_keep_their_colours_through_a_change_of_light() -> None:
+    # the whole frame's part measured once for the session (engine.tracking.shared)
+    assert crowd_under_dimming(lighting=True) >= 0.95
+    assert crowd_under_dimming(lighting=False) < 0.9
