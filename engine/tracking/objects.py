@@ -260,7 +260,7 @@ class ObjectsTracker:
         objects go on from the last frame (one object measures around itself, as a tracker
         alone)."""
         previous, light = self._previous, None
-        if len(silhouettes) >= 2:
+        if len(silhouettes) >= 2 and self.options.get("lighting", True) is not False:
             sample, step = Lighting.whole(self._light, image)
             light = SharedLight(sample, step) if self._light is not None else None
             self._light = sample

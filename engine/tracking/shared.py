@@ -29,7 +29,8 @@ __all__ = ["Crowd", "SharedLight", "SharedMotion"]
 
 @dataclass(frozen=True, slots=True)
 class SharedLight:
-    """The whole frame's part of the change of light (:meth:`engine.tracking.Lighting.whole`).
+    """The whole frame's part of the change of light
+    (:meth:`engine.tracking.lighting.Lighting.whole`).
 
     Attributes
     ----------
