@@ -483,6 +483,7 @@ def test_tracking_options_are_passed_to_the_tracker(client: TestClient) -> None:
         {"iterations": 1.5},
         {"search_radius": 10_000},
         {"occlusion": "yes"},
+        {"lighting": "maybe"},
         {"learning_rate": 2},
         {"no_such_option": 1},
         {"nodes": [[0, 0]]},

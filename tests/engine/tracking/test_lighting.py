@@ -272,3 +272,8 @@ def test_several_objects_keep_their_colours_through_a_change_of_light() -> None:
     # the whole frame's part measured once for the session (engine.tracking.shared)
     assert crowd_under_dimming(lighting=True) >= 0.95
     assert crowd_under_dimming(lighting=False) < 0.9
+
+
+def test_the_option_must_be_a_bool() -> None:
+    with pytest.raises(ValueError, match="lighting must be true or false"):
+        Tracker(circle_nodes((50.0, 50.0), 20.0, 32), lighting="yes")
