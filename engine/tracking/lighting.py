@@ -40,7 +40,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
+from engine.geometry import bounding_box, contour_to_mask
 from engine.tracking._state_codec import pack_raw, unpack_raw
 
 __all__ = ["ABSORBED", "Lighting"]
@@ -165,10 +165,7 @@ class Lighting:
 
         self._points = self._colours = None
         levels = _levels(image)
-        height, width = levels.shape[:2]
-        x0, y0 = np.floor(nodes.min(axis=0)).astype(np.int64).clip(0)
-        x1 = min(int(np.ceil(nodes[:, 0].max())) + 1, width)
-        y1 = min(int(np.ceil(nodes[:, 1].max())) + 1, height)
+        x0, y0, x1, y1 = bounding_box(levels.shape, nodes, 0, 1, keep_inside=False)
         if x1 - x0 < 1 or y1 - y0 < 1:
             return
         # a grid of about OBJECT_POINTS over the box; its points INSET inside the contour
@@ -177,7 +174,7 @@ class Lighting:
         inside = contour_to_mask((nodes - [x0, y0]) / stride, shape)
         reach = -(-INSET // stride)  # ceil: at least INSET pixels
         frame = np.ascontiguousarray(levels)
-        points, colours = interior(inside, reach, (int(x0), int(y0)), stride, frame)
+        points, colours = interior(inside, reach, (x0, y0), stride, frame)
         if len(points) >= MIN_POINTS:
             self._points, self._colours = points, colours
 
