@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking bench-service bench-load bench-studies clean
+.PHONY: run test lint typecheck pytest bench bench-solvers bench-tracking bench-seeds bench-service bench-load bench-studies clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -44,13 +44,17 @@ test-container: $(STAMP)
 	PYTHON=$(BIN)/python bash docker/test-container.sh
 
 ## bench: every benchmark (python -m bench.<family>); results land in bench/results/
-bench: bench-solvers bench-tracking bench-service bench-load bench-studies
+bench: bench-solvers bench-tracking bench-seeds bench-service bench-load bench-studies
 
 bench-solvers: $(STAMP)
 	$(BIN)/python -m bench.solvers
 
 bench-tracking: $(STAMP)
 	$(BIN)/python -m bench.tracking
+
+## bench-seeds: every synthetic condition with seeds 0-23 (8-23: draws nothing was chosen on), efdm only
+bench-seeds: $(STAMP)
+	$(BIN)/python -m bench.tracking --sets synthetic --trackers efdm --seeds 24 --out bench/results/seeds
 
 ## bench-service: a real `efdm serve` on loopback against engine.Tracker in-process (bench/serving)
 bench-service: $(STAMP)

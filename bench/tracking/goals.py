@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 from bench.common.data import synthetic_condition
 from bench.common.report import GoalLine, fmt
@@ -40,6 +41,59 @@ with room for several objects on a live camera."""
 GOALS = {"davis-train": TRAIN_GOAL, "davis-val": VAL_GOAL, "synthetic": SYNTHETIC_GOAL}
 """The J goal line drawn for each set."""
 IN_SAMPLE = "in-sample: the confidence model was fitted on the 30"
+DEVELOPED_SEEDS = 8
+"""Synthetic seeds 0-7 are the draws the tracker was developed and judged on (0-2: the
+plain run's; 3-7: the check of every design against draws beyond those); seeds from 8 on
+are draws no setting or design was chosen on."""
+
+
+@dataclass(frozen=True, slots=True)
+class ConditionSeeds:
+    """One synthetic condition over the seeds of a run (efdm's mean IoU per clip).
+
+    ``met``: how many clips reach the condition's goal; ``worst``: the lowest mean IoU and
+    its seed; ``unseen_met`` / ``unseen``: the same count over the seeds from
+    :data:`DEVELOPED_SEEDS` on.
+    """
+
+    condition: str
+    goal: float
+    seeds: int
+    met: int
+    mean: float
+    worst: float
+    worst_seed: int
+    unseen: int
+    unseen_met: int
+
+
+def by_condition(synthetic: Sequence[ClipResult]) -> list[ConditionSeeds]:
+    """Each synthetic condition's efdm results over its seeds, in the run's order."""
+    values: dict[str, list[tuple[int, float]]] = {}
+    for clip in synthetic:
+        efdm = clip.runs.get("efdm")
+        if efdm is not None and math.isfinite(efdm.mean_j):
+            condition, seed = synthetic_condition(clip.name)
+            values.setdefault(condition, []).append((seed, efdm.mean_j))
+    rows = []
+    for condition, pairs in values.items():
+        goal = SYNTHETIC_GOALS.get(condition, SYNTHETIC_GOAL)
+        seed, worst = min(pairs, key=lambda pair: pair[1])
+        unseen = [j for s, j in pairs if s >= DEVELOPED_SEEDS]
+        rows.append(
+            ConditionSeeds(
+                condition,
+                goal,
+                len(pairs),
+                sum(j >= goal for _, j in pairs),
+                sum(j for _, j in pairs) / len(pairs),
+                worst,
+                seed,
+                len(unseen),
+                sum(j >= goal for j in unseen),
+            )
+        )
+    return rows
 
 
 def score_goal(label: str, value: float, target: float) -> GoalLine:

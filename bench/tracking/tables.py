@@ -6,6 +6,7 @@ import math
 from collections.abc import Sequence
 
 from bench.common.report import fmt, md_table
+from bench.tracking.goals import DEVELOPED_SEEDS, ConditionSeeds
 from bench.tracking.metrics import HIGH_IOU, LOW_IOU, SetScore, StatusScore, share
 from bench.tracking.run import ClipResult, TrackRun, pooled_median_ms
 
@@ -120,3 +121,31 @@ def timing_table(clips: Sequence[ClipResult], trackers: Sequence[str]) -> str:
             ]
         )
     return md_table(["clip", *(f"{t} ms" for t in trackers), "efdm fps", "skimage/efdm"], rows)
+
+
+def seeds_table(rows: Sequence[ConditionSeeds]) -> str:
+    """Per synthetic condition: clips meeting the goal (all seeds, then the unseen ones),
+    mean and worst IoU."""
+    return md_table(
+        [
+            "condition",
+            "goal",
+            "seeds",
+            "meet the goal",
+            f"seeds >= {DEVELOPED_SEEDS}: meet the goal",
+            "mean IoU",
+            "worst IoU (seed)",
+        ],
+        [
+            [
+                r.condition,
+                f">= {r.goal:g}",
+                str(r.seeds),
+                of(r.met, r.seeds),
+                of(r.unseen_met, r.unseen),
+                fmt(r.mean, ".3f"),
+                f"{fmt(r.worst, '.3f')} ({r.worst_seed})",
+            ]
+            for r in rows
+        ],
+    )
