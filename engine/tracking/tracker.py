@@ -26,11 +26,8 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 
 from __future__ import annotations
 
-import binascii
 import copy
 import dataclasses
-import json
-import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -41,13 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from engine.geometry import as_nodes, resample
 from engine.tracking._frames import as_frame as _as_frame
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
-from engine.tracking._state_codec import from_version_1 as _from_version_1
-from engine.tracking._state_codec import (
-    pack_compact_frame,
-    pack_image,
-    unpack_compact_frame,
-    unpack_image,
-)
+from engine.tracking._tracker_state import restore, snapshot
 from engine.tracking.appearance import ColourHistogram
 from engine.tracking.background import MEASURE, Background
 from engine.tracking.confidence import (
@@ -83,10 +74,6 @@ from engine.tracking.validity import valid_contour
 
 __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
-STATE_VERSION = 3
-"""Version 3 adds the segmentation stage; version 2 (each other stage's state
-under ``"stages"``) and version 1 (the colour model, probability and corners
-at the top level) are still read, the segmentation learning afresh."""
 MIN_SIDE = 16
 """Frames smaller than this (pixels) carry no trackable information."""
 MOTION_SHARE = 0.4
@@ -96,7 +83,6 @@ even when the object's texture gives the motion little support."""
 LEARN_ABOVE = 0.5
 """Only frames whose learning signal is at least this teach the appearance
 model, so that a lost or occluded object does not teach it the background."""
-STAGES = ("motion", "appearance", "cues", "segmentation")
 REACQUIRE_MARGIN = 0.05
 """A re-acquired contour must beat the local track's search score by this much:
 of two near-equal readings, the one that did not jump wins."""
@@ -105,10 +91,6 @@ PROBATION = 2
 jump is right only if the object is then followed from there."""
 UNCONFIRMED = TRACKING_FROM - 1e-3
 """The confidence reported while on probation: just below ``tracking``."""
-COMPACT_BYTES = 52 * 1024
-"""JSON size a compact state aims at (the previous frame's detail gets what the rest
-leaves): the service's Redis record adds about 9 kB for a 128-node session (its
-contour and rest shape), which keeps a committed frame within 64 kB."""
 SEARCH_UNLESS_COVERED = 0.2
 """An object at least this much hidden by other tracked objects in front is not searched
 for elsewhere: its low score is theirs, and it is known to be behind them."""
@@ -135,15 +117,6 @@ scored as the benchmark does: 0.929-0.950 before, 0.985-0.988 after; nothing els
 24 seeds of every condition changed, and the thirty training sequences scored J 0.6905
 against 0.6908 over five node counts).  After one such frame instead of three: the same
 on the synthetic conditions, 0.6887 on the thirty."""
-
-
-def _stage_state(stage: object, compact: bool) -> dict[str, Any]:
-    """A stage's state: its compact one when asked for and offered, else the exact one."""
-    method = getattr(stage, "to_compact_state", None) if compact else None
-    if method is None:
-        method = getattr(stage, "to_state")  # noqa: B009 - every stage has it (protocol)
-    state: dict[str, Any] = method()
-    return state
 
 
 @dataclass(frozen=True, slots=True)
@@ -529,32 +502,7 @@ class Tracker:
             it compares the next frame with (that frame measures no change of
             light).
         """
-        previous = self._previous if include_frame else None
-        state: dict[str, Any] = {
-            "version": STATE_VERSION,
-            "nodes": self._nodes.tolist(),
-            "options": dataclasses.asdict(self.options),
-            "frame_index": self.frame_index,
-            "previous": None,
-            "stages": None
-            if previous is None
-            else {name: _stage_state(getattr(self, name), compact) for name in STAGES},
-            "search": None if previous is None else self._memory.to_state(),
-            "lighting": None
-            if previous is None or not self.options.lighting
-            else self._lighting.to_state(compact=compact),
-        }
-        if previous is not None and compact:
-            search = state["search"]  # the shape searched for, to a hundredth of a pixel
-            search["shape"] = np.round(self._memory.shape, 2).tolist()
-            search["hold"] = np.round(self._memory.hold, 3).tolist()
-            if self._memory.outline is not None:
-                search["outline"] = np.round(self._memory.outline, 2).tolist()
-            room = COMPACT_BYTES - len(json.dumps(state))
-            state["previous"] = pack_compact_frame(previous, self._nodes, room)
-        elif previous is not None:
-            state["previous"] = pack_image(previous)
-        return state
+        return snapshot(self, include_frame=include_frame, compact=compact)
 
     @classmethod
     def from_state(
@@ -586,54 +534,6 @@ class Tracker:
             If the state is malformed, of an unknown version, or of stages
             other than those given.
         """
-        if not isinstance(state, Mapping) or state.get("version") not in (1, 2, STATE_VERSION):
-            raise ValueError(f"tracker state must be a dict of version 1 to {STATE_VERSION}")
-        try:
-            if state["version"] == 1:
-                state = _from_version_1(state)
-            options = dict(state["options"])
-            if state["version"] < STATE_VERSION:
-                # written before the segmentation stage: continue as the tracker that wrote it
-                options.setdefault("cut_band", 0)
-                options.setdefault("reacquire_above", 1.0)
-                options.setdefault("hold_below", 0.0)
-            # written before the motion contrast and the figure-ground split of the motion:
-            # continue as the tracker that wrote it
-            options.setdefault("motion_contrast", False)
-            options.setdefault("figure_ground", False)
-            options.setdefault("shape_memory", False)  # and before the shape memory
-            options.setdefault("lighting", False)  # and before the lighting
-            tracker = cls(
-                state["nodes"],
-                motion=motion,
-                appearance=appearance,
-                cues=cues,
-                segmentation=segmentation,
-                **options,
-            )
-            tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
-            tracker.frame_index = int(state["frame_index"])
-            stages, previous = state.get("stages"), state.get("previous")
-            if stages is not None and previous is not None:
-                tracker.motion = tracker.motion.from_state(stages["motion"])
-                tracker.appearance = tracker.appearance.from_state(stages["appearance"])
-                tracker.cues = tracker.cues.from_state(stages["cues"])
-                if "segmentation" in stages:  # not in version 2
-                    segmented = tracker.segmentation.from_state(stages["segmentation"])
-                    tracker.segmentation = segmented
-                search = state.get("search")
-                if search is not None:
-                    tracker._memory = Memory.from_state(search, len(tracker._nodes))
-                    if not tracker.options.shape_memory:
-                        tracker._memory.outline = None
-                lighting = state.get("lighting")
-                if lighting is not None and tracker.options.lighting:
-                    tracker._lighting = Lighting.from_state(lighting)
-                tracker._previous = (
-                    unpack_compact_frame(previous)
-                    if isinstance(previous, Mapping)
-                    else unpack_image(previous)
-                )
-        except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
-            raise ValueError(f"malformed tracker state: {exc}") from None
-        return tracker
+        return restore(
+            cls, state, motion=motion, appearance=appearance, cues=cues, segmentation=segmentation
+        )

@@ -19,7 +19,8 @@ from engine import TrackerOptions, TrackResult
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking._state_codec import pack_counts as _pack_counts
 from engine.tracking._state_codec import pack_histogram as _pack
-from engine.tracking.tracker import STATE_VERSION, Tracker
+from engine.tracking._tracker_state import STATE_VERSION
+from engine.tracking.tracker import Tracker
 from tests.engine.tracking.moving_disc import (
     H,
     R,

@@ -1,0 +1,149 @@
+"""The tracker's JSON state: written by ``Tracker.to_state``, read by ``Tracker.from_state``.
+
+A snapshot holds the contour, the options, the frame count and, unless left out, the
+previous grey frame with each stage's state, the search's memory and the lighting, so
+that tracking resumes bit for bit (or, compact, within a few tens of kB).  Older
+versions are read and continue as the tracker that wrote them.
+Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+import binascii
+import dataclasses
+import json
+import zlib
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from engine.geometry import as_nodes
+from engine.tracking._state_codec import from_version_1 as _from_version_1
+from engine.tracking._state_codec import (
+    pack_compact_frame,
+    pack_image,
+    unpack_compact_frame,
+    unpack_image,
+)
+from engine.tracking.lighting import Lighting
+from engine.tracking.memory import Memory
+from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel, Segmentation
+
+if TYPE_CHECKING:
+    from engine.tracking.tracker import Tracker
+
+__all__ = ["COMPACT_BYTES", "STATE_VERSION", "restore", "snapshot"]
+
+STATE_VERSION = 3
+"""Version 3 adds the segmentation stage; version 2 (each other stage's state
+under ``"stages"``) and version 1 (the colour model, probability and corners
+at the top level) are still read, the segmentation learning afresh."""
+STAGES = ("motion", "appearance", "cues", "segmentation")
+COMPACT_BYTES = 52 * 1024
+"""JSON size a compact state aims at (the previous frame's detail gets what the rest
+leaves): the service's Redis record adds about 9 kB for a 128-node session (its
+contour and rest shape), which keeps a committed frame within 64 kB."""
+
+
+def _stage_state(stage: object, compact: bool) -> dict[str, Any]:
+    """A stage's state: its compact one when asked for and offered, else the exact one."""
+    method = getattr(stage, "to_compact_state", None) if compact else None
+    if method is None:
+        method = getattr(stage, "to_state")  # noqa: B009 - every stage has it (protocol)
+    state: dict[str, Any] = method()
+    return state
+
+
+def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[str, Any]:
+    """``tracker``'s state, as :meth:`engine.tracking.Tracker.to_state` documents it."""
+    previous = tracker._previous if include_frame else None
+    state: dict[str, Any] = {
+        "version": STATE_VERSION,
+        "nodes": tracker._nodes.tolist(),
+        "options": dataclasses.asdict(tracker.options),
+        "frame_index": tracker.frame_index,
+        "previous": None,
+        "stages": None
+        if previous is None
+        else {name: _stage_state(getattr(tracker, name), compact) for name in STAGES},
+        "search": None if previous is None else tracker._memory.to_state(),
+        "lighting": None
+        if previous is None or not tracker.options.lighting
+        else tracker._lighting.to_state(compact=compact),
+    }
+    if previous is not None and compact:
+        search = state["search"]  # the shape searched for, to a hundredth of a pixel
+        search["shape"] = np.round(tracker._memory.shape, 2).tolist()
+        search["hold"] = np.round(tracker._memory.hold, 3).tolist()
+        if tracker._memory.outline is not None:
+            search["outline"] = np.round(tracker._memory.outline, 2).tolist()
+        room = COMPACT_BYTES - len(json.dumps(state))
+        state["previous"] = pack_compact_frame(previous, tracker._nodes, room)
+    elif previous is not None:
+        state["previous"] = pack_image(previous)
+    return state
+
+
+def restore(
+    cls: type[Tracker],
+    state: Mapping[str, Any],
+    *,
+    motion: MotionModel | None = None,
+    appearance: AppearanceModel | None = None,
+    cues: BoundaryCues | None = None,
+    segmentation: Segmentation | None = None,
+) -> Tracker:
+    """A ``cls`` tracker resumed from ``state``, as :meth:`engine.tracking.Tracker.from_state`
+    documents it; ValueError when the state is malformed."""
+    if not isinstance(state, Mapping) or state.get("version") not in (1, 2, STATE_VERSION):
+        raise ValueError(f"tracker state must be a dict of version 1 to {STATE_VERSION}")
+    try:
+        if state["version"] == 1:
+            state = _from_version_1(state)
+        options = dict(state["options"])
+        if state["version"] < STATE_VERSION:
+            # written before the segmentation stage: continue as the tracker that wrote it
+            options.setdefault("cut_band", 0)
+            options.setdefault("reacquire_above", 1.0)
+            options.setdefault("hold_below", 0.0)
+        # written before the motion contrast and the figure-ground split of the motion:
+        # continue as the tracker that wrote it
+        options.setdefault("motion_contrast", False)
+        options.setdefault("figure_ground", False)
+        options.setdefault("shape_memory", False)  # and before the shape memory
+        options.setdefault("lighting", False)  # and before the lighting
+        tracker = cls(
+            state["nodes"],
+            motion=motion,
+            appearance=appearance,
+            cues=cues,
+            segmentation=segmentation,
+            **options,
+        )
+        tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
+        tracker.frame_index = int(state["frame_index"])
+        stages, previous = state.get("stages"), state.get("previous")
+        if stages is not None and previous is not None:
+            tracker.motion = tracker.motion.from_state(stages["motion"])
+            tracker.appearance = tracker.appearance.from_state(stages["appearance"])
+            tracker.cues = tracker.cues.from_state(stages["cues"])
+            if "segmentation" in stages:  # not in version 2
+                segmented = tracker.segmentation.from_state(stages["segmentation"])
+                tracker.segmentation = segmented
+            search = state.get("search")
+            if search is not None:
+                tracker._memory = Memory.from_state(search, len(tracker._nodes))
+                if not tracker.options.shape_memory:
+                    tracker._memory.outline = None
+            lighting = state.get("lighting")
+            if lighting is not None and tracker.options.lighting:
+                tracker._lighting = Lighting.from_state(lighting)
+            tracker._previous = (
+                unpack_compact_frame(previous)
+                if isinstance(previous, Mapping)
+                else unpack_image(previous)
+            )
+    except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
+        raise ValueError(f"malformed tracker state: {exc}") from None
+    return tracker
