@@ -272,7 +272,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "(jpg/jpeg/png/bmp/tif/tiff/webp, sorted by name) or a quoted glob pattern "
             "(sorted). Writes one JSON record per frame (JSON Lines): frame, nodes "
             "[[x, y], ...] in pixels (x = column, y = row), iterations, converged, "
-            "confidence, elapsed_ms."
+            "confidence, status (tracking, uncertain or lost), elapsed_ms; with several "
+            "objects, frame, objects [{id, nodes or contours, confidence, status, "
+            "behind}, ...] and elapsed_ms."
         ),
         epilog=(
             "exit codes: 0 success, 1 an input or output could not be read or written, "

@@ -125,6 +125,20 @@ def test_folder_to_stdout(folder: Path, tmp_path: Path, capsys: pytest.CaptureFi
     assert captured.err == ""  # short input: no progress line
 
 
+def test_the_help_names_every_field_of_a_record(
+    folder: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["track", str(folder), "--init-circle", CIRCLE, "--quiet"]) == 0
+    record = read_records(capsys.readouterr().out)[0]
+    with pytest.raises(SystemExit):
+        main(["track", "--help"])
+    described = " ".join(capsys.readouterr().out.split())  # argparse wraps the text
+    for field in record:
+        assert field in described, field
+    for status in ("tracking", "uncertain", "lost"):
+        assert status in described
+
+
 def test_glob_pattern_with_mask(folder: Path, tmp_path: Path) -> None:
     mask = np.zeros((H, W), np.uint8)
     cv2.circle(mask, (40, 60), R, 255, -1)
