@@ -13,7 +13,7 @@ import binascii
 import dataclasses
 import json
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -28,7 +28,6 @@ from engine.tracking._state_codec import (
 )
 from engine.tracking.lighting import Lighting
 from engine.tracking.memory import Memory
-from engine.tracking.stages import AppearanceModel, BoundaryCues, MotionModel, Segmentation
 
 if TYPE_CHECKING:
     from engine.tracking.tracker import Tracker
@@ -85,17 +84,13 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
     return state
 
 
-def restore(
-    cls: type[Tracker],
-    state: Mapping[str, Any],
-    *,
-    motion: MotionModel | None = None,
-    appearance: AppearanceModel | None = None,
-    cues: BoundaryCues | None = None,
-    segmentation: Segmentation | None = None,
-) -> Tracker:
-    """A ``cls`` tracker resumed from ``state``, as :meth:`engine.tracking.Tracker.from_state`
-    documents it; ValueError when the state is malformed."""
+def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
+    """A tracker resumed from ``state``, as :meth:`engine.tracking.Tracker.from_state`
+    documents it; ValueError when the state is malformed.
+
+    ``make(nodes, **options)`` builds the tracker (the class with the caller's stages
+    bound); the state's stages are then loaded into the stages it built.
+    """
     if not isinstance(state, Mapping) or state.get("version") not in (1, 2, STATE_VERSION):
         raise ValueError(f"tracker state must be a dict of version 1 to {STATE_VERSION}")
     try:
@@ -113,14 +108,7 @@ def restore(
         options.setdefault("figure_ground", False)
         options.setdefault("shape_memory", False)  # and before the shape memory
         options.setdefault("lighting", False)  # and before the lighting
-        tracker = cls(
-            state["nodes"],
-            motion=motion,
-            appearance=appearance,
-            cues=cues,
-            segmentation=segmentation,
-            **options,
-        )
+        tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])
         stages, previous = state.get("stages"), state.get("previous")

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -534,6 +535,7 @@ class Tracker:
             If the state is malformed, of an unknown version, or of stages
             other than those given.
         """
-        return restore(
-            cls, state, motion=motion, appearance=appearance, cues=cues, segmentation=segmentation
+        make = functools.partial(
+            cls, motion=motion, appearance=appearance, cues=cues, segmentation=segmentation
         )
+        return restore(make, state)
