@@ -325,7 +325,8 @@ def render(results: Results) -> str:
     sections = ["\n".join(top), "## Goals\n\n" + goals_table(goals(results))]
     if any(results.sets.values()):
         sections.append(summary_section(results))
-    sections += [s for s in (seeds_section(results),) if s]
+    if seeds := seeds_section(results):
+        sections.append(seeds)
     sections += [set_section(results, name) for name, clips in results.sets.items() if clips]
     sections += [s for s in (speed_section(results), diagnostics_section(results)) if s]
     sections.append(notes_section(results))
