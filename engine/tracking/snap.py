@@ -23,7 +23,16 @@ what the outline says:
 - when the colour models find no object (a box mostly of background
   colours), the solve is repeated with the outline's central part as
   definite object, and if that fails too the outline's inscribed ellipse is
-  given: a contour to start from, never nothing.
+  given: a contour to start from, never nothing;
+- given the next frame, what moved otherwise than the background is likelier
+  object: the object's motion is measured on the colour cut's contour, the
+  background's around it, and the motion contrast
+  (:mod:`engine.tracking.motion_contrast`) of each pixel is added to the colour
+  models' log-odds in one more cut of GrabCut's energy
+  (:func:`engine.tracking._grabcut.cut_with_odds`).  A fence, a wall or a wake
+  of the object's colours inside the box goes; on the thirty DAVIS training
+  sequences the first-frame IoU goes from 0.756 to 0.802 (the weight of the
+  motion cross-validated: 0.794 held out).
 
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV; a box is
 ``(x0, y0, x1, y1)`` in pixel edges: the box of a mask whose pixels span
@@ -33,14 +42,17 @@ columns ``x0 .. x1 - 1`` and rows ``y0 .. y1 - 1``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import logsumexp
 
-from engine.geometry import as_nodes, contour_to_mask
+from engine.geometry import as_nodes, contour_to_mask, mask_to_contour
+from engine.tracking._frames import as_frame, repeatable_opencv
+from engine.tracking._grabcut import GrabCut, cut_with_odds, grabcut
+from engine.tracking.background import background_motion
+from engine.tracking.motion import estimate_motion
+from engine.tracking.motion_contrast import motion_ratio
 
 __all__ = ["SIDE", "snap"]
 
@@ -70,13 +82,22 @@ than 1 % of the object is a pin that found nothing to join: dropped."""
 MIN_SHARE = 0.05
 """A cut keeping less than 5 % of the outline's area found no object: retried with
 the central part as definite object."""
-SEED = 12345
-"""OpenCV's random seed before each GrabCut (k-means starts its colour models):
-without it a snap depends on whatever drew random numbers before."""
-MODEL_COMPONENTS = 5
-"""Gaussians in each of GrabCut's colour models (OpenCV's ``GMM::componentsCount``)."""
 CORE = 0.25
 """Half-axes of that central part, as a share of the outline box's sides."""
+MOTION_WEIGHT = 10.0
+"""Weight of the motion contrast's log-odds (at most +-2 each,
+:data:`~engine.tracking.motion_contrast.GAIN`) against the colour models' in the cut
+with the next frame: at most +-20, enough to overrule colour where the motion is
+clear.  Chosen by five-fold cross-validation on the thirty DAVIS training sequences
+(weights 3, 6, 10 and 15 with one following frame; 10 in four folds of five):
+first-frame IoU 0.794 held out, against 0.756 from the first frame alone; on all
+thirty 6 to 10 scored 0.796-0.799, 3 0.783 and 15 0.796, and two or three following
+frames no better (0.778-0.798).  Leaving neutral the background the object is about to
+cover (:func:`_motion_odds`) then took the thirty to 0.802 and the extra pixels within
+4 px outside the object from 8.6 % to 7.9 % of its area (7.6 % from colour alone)."""
+MOTION_NODES = 128
+"""Nodes of the colour cut's contour that the object's motion is measured on (as the
+tracker's default contour)."""
 
 
 def _box_of(
@@ -99,7 +120,12 @@ def _box_of(
     return (float(lo[0]), float(lo[1]), float(hi[0]) + 1.0, float(hi[1]) + 1.0), polygon
 
 
-def snap(image: NDArray[np.uint8], outline: Sequence[float] | ArrayLike) -> NDArray[np.uint8]:
+def snap(
+    image: NDArray[np.uint8],
+    outline: Sequence[float] | ArrayLike,
+    *,
+    next_frame: NDArray[np.uint8] | None = None,
+) -> NDArray[np.uint8]:
     """The object inside a rough outline, as a mask.
 
     Parameters
@@ -109,6 +135,10 @@ def snap(image: NDArray[np.uint8], outline: Sequence[float] | ArrayLike) -> NDAr
     outline : array_like
         A box ``[x0, y0, x1, y1]`` (pixel edges, see the module notes) or a
         closed polygon, (M, 2) ``[x, y]`` pixels, M >= 3, around the object.
+    next_frame : numpy.ndarray, optional
+        The frame after ``image`` (same size, BGR or grey uint8): what moved
+        otherwise than the background between the two is likelier object
+        (see the module notes).  Without it, colour alone decides.
 
     Returns
     -------
@@ -120,8 +150,9 @@ def snap(image: NDArray[np.uint8], outline: Sequence[float] | ArrayLike) -> NDAr
     ------
     ValueError
         If the image is not a non-empty uint8 image, the box is empty,
-        inverted or not finite, the polygon is malformed, or the outline
-        lies entirely outside the frame.
+        inverted or not finite, the polygon is malformed, the outline
+        lies entirely outside the frame, or ``next_frame`` is not a uint8
+        image of the same size.
     """
     frame = np.asarray(image)
     if frame.dtype != np.uint8 or frame.ndim not in (2, 3) or min(frame.shape[:2]) < 1:
@@ -131,6 +162,7 @@ def snap(image: NDArray[np.uint8], outline: Sequence[float] | ArrayLike) -> NDAr
     elif frame.shape[2] != 3:
         raise ValueError(f"image must have 1 or 3 channels; got {frame.shape[2]}")
     height, width = frame.shape[:2]
+    following = None if next_frame is None else _following(next_frame, (height, width))
     (x0, y0, x1, y1), polygon = _box_of(outline)
     inside = _outline_mask((height, width), (x0, y0, x1, y1), polygon)
     if not inside.any():
@@ -144,16 +176,51 @@ def snap(image: NDArray[np.uint8], outline: Sequence[float] | ArrayLike) -> NDAr
     size = (max(round(w * scale), 1), max(round(h * scale), 1))
     small = np.asarray(cv2.resize(region, size, interpolation=cv2.INTER_AREA), np.uint8)
     wanted = np.asarray(cv2.resize(allowed, size, interpolation=cv2.INTER_NEAREST), np.uint8)
-    found = _cut(small, wanted, tight=polygon is None)
-    if found is None:  # a soft mask at full resolution: smooth, not blocky, boundaries
+    cut = _cut(small, wanted, tight=polygon is None)
+    if cut is None:
         mask = _ellipse(inside.shape, (x0, y0, x1, y1)) & inside
     else:
-        soft = cv2.resize(found.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
-        mask = np.zeros((height, width), np.uint8)
-        mask[ry0:ry1, rx0:rx1] = (soft >= 0.5) & (allowed > 0)
+        found, models = cut
+        box = (rx0, ry0, rx1, ry1)
+        mask = _full(found, allowed, box, (height, width))
+        if following is not None and mask.any():
+            odds = _motion_odds(frame, following, mask, box)
+            if odds is not None:
+                extra = cv2.resize(odds, size, interpolation=cv2.INTER_AREA).astype(np.float64)
+                found = cut_with_odds(small, models, MOTION_WEIGHT * extra)
+                mask = _full(found, allowed, box, (height, width))
     if not mask.any():
         mask = inside
     return np.asarray(mask, np.uint8) * np.uint8(255)
+
+
+def _following(image: NDArray[np.uint8], shape: tuple[int, int]) -> NDArray[np.uint8]:
+    """The next frame, grey; ValueError unless a uint8 image of ``shape`` (height, width)."""
+    frame = np.asarray(image)
+    if frame.dtype != np.uint8 or frame.shape[:2] != shape:
+        raise ValueError(
+            f"next_frame must be a uint8 image of the frame's size {shape[1]} x {shape[0]}; "
+            f"got {frame.dtype} {frame.shape}"
+        )
+    return as_frame(frame)[1]
+
+
+def _full(
+    found: NDArray[np.uint8],
+    allowed: NDArray[np.uint8],
+    region: tuple[int, int, int, int],
+    shape: tuple[int, int],
+) -> NDArray[np.uint8]:
+    """The shrunk region's labels back at full resolution, smooth rather than blocky.
+
+    ``region`` (x0, y0, x1, y1) of a frame of ``shape`` (height, width); ``allowed``:
+    1 on the region's pixels inside the outline, the only ones kept.
+    """
+    x0, y0, x1, y1 = region
+    soft = cv2.resize(found.astype(np.float32), (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR)
+    mask = np.zeros(shape, np.uint8)
+    mask[y0:y1, x0:x1] = (soft >= 0.5) & (allowed > 0)
+    return mask
 
 
 def _outline_mask(
@@ -189,8 +256,9 @@ def _ellipse(shape: tuple[int, int], box: tuple[float, ...]) -> NDArray[np.uint8
 
 def _cut(
     image: NDArray[np.uint8], wanted: NDArray[np.uint8], *, tight: bool
-) -> NDArray[np.uint8] | None:
-    """GrabCut of ``image`` with ``wanted`` as the possible object; None if it finds none.
+) -> tuple[NDArray[np.uint8], GrabCut] | None:
+    """GrabCut of ``image`` with ``wanted`` as the possible object: the object found and
+    the cut it came from (its models and definite labels); None if it finds none.
 
     ``tight``: ``wanted`` is a box the object reaches on every row and column
     (:func:`_tighten`).
@@ -199,17 +267,17 @@ def _cut(
     if area < 4 or min(image.shape[:2]) < 2:
         return None
     start = np.where(wanted > 0, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
-    cut = _grabcut(image, start)
+    cut = grabcut(image, start, ITERATIONS)
     if cut is None or np.count_nonzero(cut.found) < MIN_SHARE * area:
         ys, xs = np.nonzero(wanted)
         box = (float(xs.min()), float(ys.min()), float(xs.max()) + 1, float(ys.max()) + 1)
         core = _ellipse(wanted.shape, _shrunk(box, 2 * CORE)) & wanted
         seeded = start.copy()
         seeded[core > 0] = cv2.GC_FGD
-        cut = _grabcut(image, seeded)
+        cut = grabcut(image, seeded, ITERATIONS)
     if cut is None or np.count_nonzero(cut.found) < MIN_SHARE * area:
         return None
-    return _tighten(image, wanted, cut) if tight else cut.found
+    return _tighten(image, wanted, cut) if tight else (cut.found, cut)
 
 
 def _shrunk(box: tuple[float, ...], share: float) -> tuple[float, ...]:
@@ -219,43 +287,9 @@ def _shrunk(box: tuple[float, ...], share: float) -> tuple[float, ...]:
     return (cx - hw, cy - hh, cx + hw, cy + hh)
 
 
-@dataclass(frozen=True)
-class _GrabCut:
-    """GrabCut's labels (``cv2.GC_*``) and its two colour models (OpenCV's 1 x 65 layout)."""
-
-    labels: NDArray[np.uint8]
-    background: NDArray[np.float64]
-    foreground: NDArray[np.float64]
-
-    @property
-    def found(self) -> NDArray[np.uint8]:
-        """1 where the labels say object."""
-        labels = self.labels
-        return np.asarray((labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD), np.uint8)
-
-
-def _grabcut(
-    image: NDArray[np.uint8], labels: NDArray[np.uint8], *, resume: _GrabCut | None = None
-) -> _GrabCut | None:
-    """GrabCut from ``labels`` (or resumed from ``resume``'s models); None when OpenCV
-    refuses (one label only)."""
-    mask = labels.copy()
-    if resume is None:
-        background, foreground = np.zeros((1, 65)), np.zeros((1, 65))
-        iterations, mode = ITERATIONS, cv2.GC_INIT_WITH_MASK
-    else:
-        background, foreground = resume.background.copy(), resume.foreground.copy()
-        iterations, mode = TIGHT_ITERATIONS, cv2.GC_EVAL
-    cv2.setRNGSeed(SEED)  # its colour models start from k-means: the same answer every time
-    try:
-        rect = (0, 0, 1, 1)  # unused: the labels give the start
-        cv2.grabCut(image, mask, rect, background, foreground, iterations, mode)
-    except cv2.error:
-        return None
-    return _GrabCut(mask, background, foreground)
-
-
-def _tighten(image: NDArray[np.uint8], box: NDArray[np.uint8], cut: _GrabCut) -> NDArray[np.uint8]:
+def _tighten(
+    image: NDArray[np.uint8], box: NDArray[np.uint8], cut: GrabCut
+) -> tuple[NDArray[np.uint8], GrabCut]:
     """The cut with the box's tightness prior: every row and column of the box meets the object.
 
     One round of Lempitsky et al.'s pinpointing (ICCV 2009): on each row and column
@@ -263,20 +297,19 @@ def _tighten(image: NDArray[np.uint8], box: NDArray[np.uint8], cut: _GrabCut) ->
     likelier under the object's model than the background's, by the largest
     margin, becomes definite object, and GrabCut resumes for
     :data:`TIGHT_ITERATIONS`.  A line with no such pixel is left empty (a box
-    drawn loose on that side).
+    drawn loose on that side).  Returns the object found and the cut it came from.
     """
     found = cut.found
     rows, cols = np.flatnonzero(box.any(axis=1)), np.flatnonzero(box.any(axis=0))
     empty_rows, empty_cols = rows[~found[rows].any(axis=1)], cols[~found[:, cols].any(axis=0)]
     if not len(empty_rows) and not len(empty_cols):
-        return found
+        return found, cut
     lines = np.zeros(box.shape, np.bool_)
     lines[empty_rows, :] = True
     lines[:, empty_cols] = True
     lines &= box > 0
     odds = np.full(box.shape, -np.inf)
-    pixels = image[lines].astype(np.float64)
-    odds[lines] = _log_likelihood(cut.foreground, pixels) - _log_likelihood(cut.background, pixels)
+    odds[lines] = cut.odds(image[lines].reshape(-1, 1, 3)).ravel()
     labels = cut.labels.copy()
     on_rows = np.argmax(odds[empty_rows], axis=1)
     on_cols = np.argmax(odds[:, empty_cols], axis=0)
@@ -286,11 +319,11 @@ def _tighten(image: NDArray[np.uint8], box: NDArray[np.uint8], cut: _GrabCut) ->
     labels[pins_y[likelier], pins_x[likelier]] = cv2.GC_FGD
     pinned = bool(likelier.any())
     if not pinned:
-        return found
-    resumed = _grabcut(image, labels, resume=cut)
+        return found, cut
+    resumed = grabcut(image, labels, TIGHT_ITERATIONS, resume=cut)
     if resumed is None:
-        return found
-    return _without_strays(resumed.found, found)
+        return found, cut
+    return _without_strays(resumed.found, found), resumed
 
 
 def _without_strays(found: NDArray[np.uint8], before: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -303,23 +336,44 @@ def _without_strays(found: NDArray[np.uint8], before: NDArray[np.uint8]) -> NDAr
     return np.asarray(keep[labels], np.uint8)
 
 
-def _log_likelihood(model: NDArray[np.float64], pixels: NDArray[np.float64]) -> NDArray[np.float64]:
-    """log p(colour) of (M, 3) ``pixels`` under a GrabCut colour model.
+def _motion_odds(
+    frame: NDArray[np.uint8],
+    following: NDArray[np.uint8],
+    mask: NDArray[np.uint8],
+    region: tuple[int, int, int, int],
+) -> NDArray[np.float32] | None:
+    """Log-odds that each pixel of ``region`` moves with the object found, not the background.
 
-    OpenCV's layout (``grabcut.cpp``, ``GMM``): 5 weights, 5 means of 3, 5
-    covariances of 3 x 3; a component of weight 0 is unused.
+    The object's similarity from ``frame`` to ``following`` (grey) is measured on the
+    contour of ``mask`` (:func:`~engine.tracking.motion.estimate_motion`), the
+    background's around where that contour moves to
+    (:func:`~engine.tracking.background.background_motion`), and the motion contrast
+    (:func:`~engine.tracking.motion_contrast.motion_ratio`) compares each pixel of
+    ``frame`` with ``following`` warped back by either.  The background the object is
+    about to cover is matched by neither motion and reads as moving with the object (a
+    rim along the leading edge, all round an approaching object): it is left neutral.
+    None when the object's or the background's motion cannot be measured, or they are alike.
     """
-    k = MODEL_COMPONENTS
-    flat = model.reshape(-1)
-    weights, means = flat[:k], flat[k : 4 * k].reshape(k, 3)
-    covariances = flat[4 * k : 13 * k].reshape(k, 3, 3)
-    terms = np.full((len(pixels), k), -np.inf)
-    for c in range(k):
-        sign, log_det = np.linalg.slogdet(covariances[c])
-        if weights[c] <= 0 or sign <= 0:
-            continue
-        d = pixels - means[c]
-        mahalanobis = np.einsum("mi,mi->m", d @ np.linalg.inv(covariances[c]), d)
-        terms[:, c] = np.log(weights[c]) - 0.5 * (mahalanobis + log_det + 3 * np.log(2 * np.pi))
-    out: NDArray[np.float64] = logsumexp(terms, axis=1)  # -inf where no component is used
-    return out
+    x0, y0, x1, y1 = region
+    shape = (y1 - y0, x1 - x0)
+    grey = as_frame(frame)[1]
+    nodes = mask_to_contour(mask, MOTION_NODES)
+    with repeatable_opencv():
+        motion = estimate_motion(grey, following, nodes, figure_ground=True)
+        if motion.inlier_ratio <= 0:
+            return None
+        moved = motion.apply(nodes)
+        before = np.ascontiguousarray(following[y0:y1, x0:x1])
+        after = np.ascontiguousarray(grey[y0:y1, x0:x1])
+        background = background_motion(before, after, moved, (x0, y0))
+        if background is None:
+            return None
+        back = np.asarray(cv2.invertAffineTransform(motion.matrix), np.float64)
+        ratio = motion_ratio(following, grey, (x0, y0), shape, moved, back, background)
+    if ratio is None:
+        return None
+    odds = np.log(ratio)
+    # where the object will be, in this frame's background: what it is about to cover
+    ahead = moved @ background[:, :2].T + background[:, 2] - [x0, y0]
+    odds[(contour_to_mask(ahead, shape) > 0) & (mask[y0:y1, x0:x1] == 0)] = 0.0
+    return odds

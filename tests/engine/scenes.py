@@ -125,3 +125,36 @@ def shifted(image: U8, dx: float, dy: float) -> U8:
         ),
         np.uint8,
     )
+
+
+def decoy_scene(
+    moved: tuple[float, float] = (6.0, 3.0),
+) -> tuple[U8, U8, U8, NDArray[np.bool_]]:
+    """A textured disc whose box holds a still patch of its colours, on a background
+    that is itself mostly of its colours: frame, next frame, truth, the patch.
+
+    Colour alone keeps the patch (as GrabCut kept a hockey fence, a wall behind a
+    dancer); only the disc moves (by ``moved``) between the two frames.
+    """
+    scene = DiscScene(width=240, height=180, radius=40.0, seed=5)
+    start = (120.0, 90.0)
+    after = (start[0] + moved[0], start[1] + moved[1])
+    share = 0.7  # of the object's colour in the background's
+    base = (1 - share) * np.asarray(BACKGROUND_BGR, np.float32) + share * np.asarray(
+        OBJECT_BGR, np.float32
+    )
+    background: U8 = np.clip(base + 90.0 * texture(11, 180, 240), 0, 255).astype(np.uint8)
+    colours = np.asarray(OBJECT_BGR, np.float32) + 90.0 * texture(12, 180, 240)
+    patch_colours = np.clip(colours, 0, 255).astype(np.uint8)
+    patch = np.zeros((180, 240), np.bool_)
+    patch[50:85, 80:115] = True  # the box's top-left corner
+    patch &= (scene.mask(start) == 0) & (scene.mask(after) == 0)
+
+    def frame(centre: tuple[float, float]) -> U8:
+        disc, inside = scene.frame(centre), scene.mask(centre) > 0
+        out: U8 = background.copy()
+        out[patch] = patch_colours[patch]
+        out[inside] = disc[inside]
+        return out
+
+    return frame(start), frame(after), scene.mask(start), patch

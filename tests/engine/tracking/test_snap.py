@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, mask_iou
 from engine.tracking.snap import snap
-from tests.engine.scenes import DiscScene, two_colour_frame
+from tests.engine.scenes import DiscScene, decoy_scene, two_colour_frame
 
 U8 = NDArray[np.uint8]
 CENTRE, RADIUS = (80.0, 60.0), 25.0
@@ -100,20 +100,23 @@ def stick_scene() -> tuple[U8, U8]:
 
 def test_the_tightness_prior_brings_back_a_thin_end_the_cut_dropped() -> None:
     """Every column of the box meets the object: the stick's columns get a pin each."""
-    from engine.tracking.snap import _grabcut, _tighten
+    from engine.tracking._grabcut import grabcut
+    from engine.tracking.snap import ITERATIONS, _tighten
 
     frame, truth = stick_scene()
     x0, y0, x1, y1 = tight_box(truth)
     box = np.zeros(truth.shape, np.uint8)
     box[y0:y1, x0:x1] = 1
-    cut = _grabcut(frame, np.where(box > 0, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8))
+    start = np.where(box > 0, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
+    cut = grabcut(frame, start, ITERATIONS)
     assert cut is not None
     stick = truth.copy()
     stick[:, :90] = 0
     dropped = replace(cut, labels=np.where(stick > 0, cv2.GC_PR_BGD, cut.labels).astype(np.uint8))
     assert not dropped.found[stick > 0].any()
-    found = _tighten(frame, box, dropped)
+    found, resumed = _tighten(frame, box, dropped)
     assert found[stick > 0].mean() > 0.9
+    assert (resumed.labels == cv2.GC_FGD).any()  # the cut it came from holds the pins
     assert mask_iou(found, truth) > 0.95
 
 
@@ -122,7 +125,8 @@ def test_the_tightness_prior_pins_nothing_on_the_background_of_a_loose_box(
 ) -> None:
     """Rows and columns of a loose box that hold only background colours stay empty."""
     from engine.tracking import snap as module
-    from engine.tracking.snap import _grabcut, _tighten
+    from engine.tracking._grabcut import grabcut
+    from engine.tracking.snap import ITERATIONS, _tighten
 
     monkeypatch.setattr(module, "STRAY_SHARE", 0.0)  # a pin would stay, as a stray
 
@@ -130,10 +134,13 @@ def test_the_tightness_prior_pins_nothing_on_the_background_of_a_loose_box(
     x0, y0, x1, y1 = tight_box(truth)
     box = np.zeros(truth.shape, np.uint8)
     box[y0 - 15 : y1 + 15, x0 - 20 : x1 + 20] = 1
-    cut = _grabcut(frame, np.where(box > 0, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8))
+    start = np.where(box > 0, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
+    cut = grabcut(frame, start, ITERATIONS)
     assert cut is not None
     assert mask_iou(cut.found, truth) > 0.9
-    np.testing.assert_array_equal(_tighten(frame, box, cut), cut.found)
+    found, same = _tighten(frame, box, cut)
+    np.testing.assert_array_equal(found, cut.found)
+    assert same is cut
 
 
 def test_strays_are_pins_that_joined_nothing() -> None:
@@ -149,6 +156,70 @@ def test_strays_are_pins_that_joined_nothing() -> None:
     assert kept[30, 30] == 0
     assert kept[5:25, 26:28].all()
     assert kept[25, 25] == 1
+
+
+def test_the_next_frame_drops_a_still_patch_of_the_objects_colours() -> None:
+    first, second, truth, patch = decoy_scene()
+    box = tight_box(truth)
+    alone = snap(first, box)
+    assert (alone[patch] > 0).mean() > 0.9  # colour alone takes the patch in
+    assert mask_iou(alone, truth) < 0.95
+    moving = snap(first, box, next_frame=second)
+    assert (moving[patch] > 0).mean() < 0.1
+    assert mask_iou(moving, truth) > 0.98
+
+
+def test_a_next_frame_where_nothing_moved_changes_nothing() -> None:
+    first, _, truth, _ = decoy_scene()
+    box = tight_box(truth)
+    np.testing.assert_array_equal(snap(first, box, next_frame=first), snap(first, box))
+    grey = np.asarray(cv2.cvtColor(first, cv2.COLOR_BGR2GRAY), np.uint8)  # grey is as good
+    np.testing.assert_array_equal(snap(first, box, next_frame=grey), snap(first, box))
+
+
+def test_with_the_next_frame_nothing_outside_a_loose_outline_is_taken() -> None:
+    from engine.geometry import contour_to_mask
+
+    first, second, truth, _ = decoy_scene()
+    loose = circle_nodes((120.0, 90.0), 52.0, 48)
+    found = snap(first, loose, next_frame=second)
+    assert not found[contour_to_mask(loose, found.shape) == 0].any()
+    assert mask_iou(found, truth) > 0.8
+
+
+def test_a_bad_next_frame_is_refused() -> None:
+    frame = two_colour_frame(CENTRE, RADIUS)
+    box = tight_box(two_colour_truth())
+    with pytest.raises(ValueError, match="next_frame"):
+        snap(frame, box, next_frame=np.zeros((10, 10, 3), np.uint8))
+    with pytest.raises(ValueError, match="next_frame"):
+        snap(frame, box, next_frame=frame.astype(np.float32))
+
+
+def test_the_cut_of_grabcuts_energy_reproduces_grabcut_and_takes_more_evidence() -> None:
+    """With no extra odds the one cut gives GrabCut's own labels; strong odds move pixels,
+    but never the definite ones."""
+    from engine.tracking._grabcut import cut_with_odds, grabcut
+
+    frame, truth = stick_scene()
+    x0, y0, x1, y1 = tight_box(truth)
+    start = np.full(truth.shape, cv2.GC_BGD, np.uint8)
+    start[y0:y1, x0:x1] = cv2.GC_PR_FGD
+    start[60, 60] = cv2.GC_FGD
+    cut = grabcut(frame, start, 3)
+    assert cut is not None
+    none = np.zeros(truth.shape)
+    same = cut_with_odds(frame, cut, none)
+    assert np.mean(same == cut.found) > 0.999
+    extra = none.copy()
+    extra[50:70, 50:70] = -1e3  # the disc's centre, the pin among it
+    extra[y0 : y0 + 5, x1 - 5 : x1] = 1e3  # background inside the box
+    extra[:5, :5] = 1e3  # outside the box: definite background
+    moved = cut_with_odds(frame, cut, extra)
+    assert moved[60, 60] == 1
+    assert moved[50:70, 50:70].sum() == 1
+    assert moved[y0 : y0 + 5, x1 - 5 : x1].all()
+    assert not moved[:5, :5].any()
 
 
 @pytest.mark.parametrize(
