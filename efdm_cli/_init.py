@@ -108,20 +108,25 @@ def _read_mask(path: str, label: int | None) -> NDArray[np.bool_]:
 
 
 def initial_objects(
-    args: argparse.Namespace, size: tuple[int, int], first: NDArray[np.uint8] | None = None
+    args: argparse.Namespace,
+    size: tuple[int, int],
+    first: NDArray[np.uint8] | None = None,
+    following: NDArray[np.uint8] | None = None,
 ) -> dict[int, list[Nodes]]:
     """Each object's initial contours (one per piece), by id.
 
     Several objects come from several ``--init-box`` (ids 1, 2, ... in their
     order) or from an ``--init-mask`` label image of several labels without
-    ``--label`` (ids: the labels); otherwise there is one object, id 1.
+    ``--label`` (ids: the labels); otherwise there is one object, id 1.  ``first`` and
+    ``following``: the first two frames (see :func:`initial_contour`).
     """
+    frames = (size, first, following)
     boxes: list[str] = list(args.init_box or [])
     if len(boxes) > 1:
         if any(getattr(args, o[2:].replace("-", "_")) is not None for o in _INIT_OPTIONS[2:]):
             raise CliError("--init-box cannot be combined with another --init-*", EXIT_INVALID)
         return {
-            k: [initial_contour(argparse.Namespace(**{**vars(args), "init_box": box}), size, first)]
+            k: [initial_contour(argparse.Namespace(**{**vars(args), "init_box": box}), *frames)]
             for k, box in enumerate(boxes, start=1)
         }
     one = argparse.Namespace(**{**vars(args), "init_box": boxes[0] if boxes else None})
@@ -129,10 +134,10 @@ def initial_objects(
         labels = _labels_in(args.init_mask)
         if len(labels) > 1:
             return {
-                k: initial_contours(argparse.Namespace(**{**vars(one), "label": k}), size, first)
+                k: initial_contours(argparse.Namespace(**{**vars(one), "label": k}), *frames)
                 for k in labels
             }
-    return {1: initial_contours(one, size, first)}
+    return {1: initial_contours(one, *frames)}
 
 
 def _labels_in(path: str) -> list[int]:
@@ -151,13 +156,16 @@ def _labels_in(path: str) -> list[int]:
 
 
 def initial_contours(
-    args: argparse.Namespace, size: tuple[int, int], first: NDArray[np.uint8] | None = None
+    args: argparse.Namespace,
+    size: tuple[int, int],
+    first: NDArray[np.uint8] | None = None,
+    following: NDArray[np.uint8] | None = None,
 ) -> list[Nodes]:
     """The initial contour of each piece of the object: several only for a mask in
     separate pieces of at least ``--min-piece-area`` pixels (see :func:`initial_contour`)."""
     from engine.geometry import mask_to_contours
 
-    nodes = initial_contour(args, size, first)
+    nodes = initial_contour(args, size, first, following)
     if args.init_mask is None:
         return [nodes]
     mask = _read_mask(args.init_mask, getattr(args, "label", None))  # read before: valid
@@ -167,13 +175,17 @@ def initial_contours(
 
 
 def initial_contour(
-    args: argparse.Namespace, size: tuple[int, int], first: NDArray[np.uint8] | None = None
+    args: argparse.Namespace,
+    size: tuple[int, int],
+    first: NDArray[np.uint8] | None = None,
+    following: NDArray[np.uint8] | None = None,
 ) -> Nodes:
     """The ``--nodes`` initial nodes from exactly one ``--init-*`` option.
 
     A box (``--init-box``, unless ``--no-snap``) or a polygon or circle with
     ``--snap`` is snapped onto the object inside it in the ``first`` frame
-    (:func:`engine.tracking.snap.snap`).
+    (:func:`engine.tracking.snap.snap`), with what moved between it and the
+    ``following`` one.
 
     Parameters
     ----------
@@ -183,6 +195,8 @@ def initial_contour(
         ``(width, height)`` of the first frame.
     first : numpy.ndarray, optional
         The first frame (needed to snap).
+    following : numpy.ndarray, optional
+        The second frame, of the same size (the snap's motion cue).
 
     Raises
     ------
@@ -244,7 +258,7 @@ def initial_contour(
 
         outline = parse_box(box) if box is not None else nodes
         try:
-            nodes = mask_to_contour(snap(first, outline), args.nodes)
+            nodes = mask_to_contour(snap(first, outline, next_frame=following), args.nodes)
         except ValueError as exc:
             raise CliError(f"snap: {exc}", EXIT_INVALID) from None
     return nodes

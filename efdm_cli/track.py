@@ -184,7 +184,10 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             raise CliError(f"cannot read any frame from {args.input}", EXIT_IO)
         height, width = first[1].shape[:2]
         size = (width, height)
-        objects = initial_objects(args, size, first[1])
+        # the snap reads what moved between the first two frames: read one ahead
+        second = next(frames, None)
+        following = None if second is None or second[1].shape != first[1].shape else second[1]
+        objects = initial_objects(args, size, first[1], following)
         contours = next(iter(objects.values()))
         tracker: Tracker | PiecesTracker | ObjectsTracker
         try:
@@ -213,6 +216,7 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
         confidences: list[float] = []
         statuses: list[str] = []
         started = time.perf_counter()
+        ahead = [] if second is None else [second]
         item: tuple[str, NDArray[np.uint8]] | None = first
         while item is not None:
             name, frame = item
@@ -246,7 +250,7 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             statuses.append(str(result.status))
             index += 1
             progress.update(index)
-            item = next(frames, None)
+            item = ahead.pop() if ahead else next(frames, None)
         progress.close()
         if progress.shown:
             print(summary(confidences, statuses, time.perf_counter() - started), file=sys.stderr)
@@ -318,9 +322,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--snap",
         action=argparse.BooleanOptionalAction,
         default=None,
-        help="snap the outline onto the object inside it on the first frame (GrabCut, under "
-        "a second at 854x480): the default for --init-box; --snap for a loose polygon or "
-        "circle; --no-snap keeps the box as given",
+        help="snap the outline onto the object inside it on the first frame (GrabCut with "
+        "what moved by the second frame, under a second at 854x480): the default for "
+        "--init-box; --snap for a loose polygon or circle; --no-snap keeps the box as given",
     )
     t.add_argument(
         "--masks-out",

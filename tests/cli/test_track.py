@@ -332,6 +332,35 @@ def test_a_box_snaps_onto_the_disc_unless_told_not_to(
         assert ys.min() == pytest.approx(cy - R - 3)
 
 
+def test_the_snap_reads_what_moved_between_the_first_two_frames(tmp_path: Path) -> None:
+    """``--init-box`` snaps with the second frame (a still patch of the object's colours in
+    the box goes); a one-frame input snaps from colour alone, as the library does."""
+    from engine.geometry import contour_to_mask, mask_iou
+    from engine.tracking.snap import snap
+    from tests.engine.scenes import decoy_scene
+
+    first, second, truth, patch = decoy_scene()
+    for i, frame in enumerate((first, second, second)):
+        assert cv2.imwrite(str(tmp_path / f"f{i}.png"), frame)
+    ys, xs = np.nonzero(truth)
+    box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
+    argv = ["track", "--init-box", ",".join(map(str, box)), "-q"]
+    out = tmp_path / "t.jsonl"
+    assert main([*argv, str(tmp_path / "f*.png"), "-o", str(out)]) == 0
+    records = read_records(out.read_text())
+    assert len(records) == 3  # the frame read ahead is tracked once, in its turn
+    shape = truth.shape
+    found = contour_to_mask(np.array(records[0]["nodes"]), shape)
+    assert mask_iou(found, snap(first, box, next_frame=second)) > 0.97
+    assert mask_iou(found, truth) > 0.95
+    assert (found[patch] > 0).mean() < 0.1
+    one = tmp_path / "one.jsonl"
+    assert main([*argv, str(tmp_path / "f0.png"), "-o", str(one)]) == 0
+    alone = contour_to_mask(np.array(read_records(one.read_text())[0]["nodes"]), shape)
+    assert mask_iou(alone, snap(first, box)) > 0.97
+    assert mask_iou(alone, truth) < 0.95  # the patch kept
+
+
 def test_a_loose_circle_snaps_when_asked(folder: Path, tmp_path: Path) -> None:
     from engine.geometry import contour_to_mask, mask_iou
 
