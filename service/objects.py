@@ -5,7 +5,11 @@ A session created with ``"objects"`` follows each through the same frames
 outline with ``snap``) snaps onto the object on the next frame, and one given
 as a mask must match that frame's size: both are checked on the frame, for
 every object at once, before anything changes (a 422 leaves the session as it
-was).  Coordinates are ``[x, y]`` pixels.
+was).  The snap reads colour alone on that frame; the frame after it snaps the
+outline there again with what moved between the two
+(:func:`engine.tracking.snap.snap`'s ``next_frame``), and the object starts anew
+from that (:meth:`engine.tracking.ObjectsTracker.restart`), as ``efdm track``
+starts it.  Coordinates are ``[x, y]`` pixels.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from engine.geometry import box_outline, circle_nodes, contour_to_mask, mask_to_
 from engine.tracking import ObjectsTracker
 from engine.tracking.snap import snap
 from service.domain_errors import InvalidInputError, ObjectNotFoundError
+from service.images import frame_from_text, frame_to_text
 from service.schemas import BOX_NODES, MAX_OBJECTS, Circle, ObjectSpec
 
 __all__ = ["SessionObjects", "first_contour", "outline_nodes"]
@@ -100,11 +105,19 @@ class SessionObjects:
     waiting : dict
         Object id -> what its next frame must settle: ``"snap"`` (an outline
         to snap), ``"size"`` (a mask's width and height), ``"check"`` (the
-        contour must overlap the frame).
+        contour must overlap the frame), ``"again"`` (an outline snapped on
+        ``first``, to snap there again with the next frame).
+    first : numpy.ndarray, optional
+        The frame outlines were last snapped on, while any waits to be snapped again.
     """
 
-    def __init__(self, tracker: ObjectsTracker, waiting: dict[str, dict[str, Any]]) -> None:
-        self.tracker, self.waiting = tracker, waiting
+    def __init__(
+        self,
+        tracker: ObjectsTracker,
+        waiting: dict[str, dict[str, Any]],
+        first: NDArray[np.uint8] | None = None,
+    ) -> None:
+        self.tracker, self.waiting, self.first = tracker, waiting, first
 
     @classmethod
     def create(
@@ -187,11 +200,31 @@ class SessionObjects:
         """An object's current contours."""
         return self.tracker.contours(key)
 
+    def _snap_again(self, frame: NDArray[np.uint8]) -> None:
+        """Snap again on :attr:`first`, with what moved between it and ``frame``, the
+        outlines snapped there, and start those objects anew on it.  A frame of another
+        size has nothing to add: their colour snaps stand."""
+        first, self.first = self.first, None
+        again = {k: w["again"] for k, w in self.waiting.items() if "again" in w}
+        if first is None or first.shape[:2] != frame.shape[:2]:
+            return
+        for key, outline in again.items():
+            try:
+                found = snap(first, outline, next_frame=frame)
+                contours = mask_to_contours(found, BOX_NODES, min_area=MIN_PIECE_AREA)
+                self.tracker.restart(key, contours, first)
+            except ValueError:
+                continue  # nothing readable with the first frame: its colour snap stands
+
     def step(self, frame: NDArray[np.uint8]) -> list[dict[str, Any]]:
         """Track every object into ``frame`` (waiting ones settled first); their results."""
-        for key, contours in self._settle(frame).items():
+        settled = self._settle(frame)  # checks every object before anything changes
+        self._snap_again(frame)
+        for key, contours in settled.items():
             self.tracker.replace(key, contours)
-        self.waiting = {}
+        snapped = {k: w["snap"] for k, w in self.waiting.items() if "snap" in w}
+        self.waiting = {key: {"again": outline} for key, outline in snapped.items()}
+        self.first = frame.copy() if snapped else None
         results = self.tracker.step(frame)
         return [
             {
@@ -212,7 +245,12 @@ class SessionObjects:
 
     def to_state(self, *, compact: bool = False) -> dict[str, Any]:
         """JSON-able; :meth:`from_state` rebuilds it."""
-        return {"tracker": self.tracker.to_state(compact=compact), "waiting": self.waiting}
+        first = None if self.first is None else frame_to_text(self.first)
+        return {
+            "tracker": self.tracker.to_state(compact=compact),
+            "waiting": self.waiting,
+            "first": first,
+        }
 
     @classmethod
     def from_state(cls, state: dict[str, Any]) -> SessionObjects:
@@ -220,7 +258,12 @@ class SessionObjects:
         waiting = state.get("waiting")
         if not isinstance(waiting, dict):
             raise ValueError("objects: 'waiting' must be a dict")
-        return cls(ObjectsTracker.from_state(state["tracker"]), dict(waiting))
+        first = state.get("first")
+        return cls(
+            ObjectsTracker.from_state(state["tracker"]),
+            dict(waiting),
+            None if first is None else frame_from_text(str(first)),
+        )
 
 
 def _shape(contours: Contours) -> dict[str, Any]:

@@ -20,6 +20,7 @@ from engine.geometry import mask_to_contour
 from engine.physics import MODAL_METHODS
 from engine.tracking.snap import snap
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
+from service.images import frame_from_text, frame_to_text
 from service.objects import SessionObjects, first_contour, outline_nodes
 from service.schemas import LIMIT, SessionCreate
 from service.units import TIMES
@@ -71,8 +72,10 @@ class Session:
     tracker: Tracker | None = None
     frame_size: tuple[int, int] | None = None  # (width, height) of the last frame tracked
     ttl: float | None = None  # idle seconds to expiry, when shorter than the server's
-    # the outline to snap onto the object on the next frame: a box or a polygon (None: done)
+    # the outline to snap onto the object: a box or a polygon (None: done).  It is snapped on
+    # the first frame from colour alone, and again on the next with what moved between them
     snap_outline: list[Any] | None = None
+    snap_frame: NDArray[np.uint8] | None = None  # that first frame, until the next one comes
     objects: SessionObjects | None = None  # a session of several objects
 
     def lifetime(self, server_ttl: float) -> float:
@@ -181,6 +184,7 @@ class Session:
                 self.tracker.reset(nodes)  # validates before anything changes
             except ValueError as exc:
                 raise InvalidInputError(f"forces: {exc}") from None
+        self.snap_outline = self.snap_frame = None  # the client's contour, not a snap's
         self.nodes = nodes
         self.version += 1
         return U
@@ -200,8 +204,10 @@ class Session:
         if self.tracker is None:
             raise InvalidInputError("frames need a closed contour (an object boundary)")
         start = time.perf_counter()
-        if self.snap_outline is not None:
+        if self.snap_outline is not None and self.snap_frame is None:
             self._snap(frame)
+        elif self.snap_outline is not None:
+            self._snap_again(frame)
         # near the coordinate limit a step could carry the contour past it: keep a way back
         undo = self.tracker.to_state() if np.abs(self.nodes).max() > LIMIT - NEAR_LIMIT else None
         try:
@@ -281,10 +287,11 @@ class Session:
         return result
 
     def _snap(self, frame: NDArray[np.uint8]) -> None:
-        """Replace the contour by the object inside the outline on this frame.
+        """Replace the contour by the object inside the outline on this (first) frame.
 
-        Raises InvalidInputError (and changes nothing) when the outline lies
-        outside the frame.
+        The frame is kept: the next one snaps it again with what moved
+        (:meth:`_snap_again`).  Raises InvalidInputError (and changes nothing) when
+        the outline lies outside the frame.
         """
         if self.tracker is None or self.snap_outline is None:
             return
@@ -295,7 +302,26 @@ class Session:
             raise InvalidInputError(f"snap: {exc}") from None
         self.tracker.reset(nodes)
         self.rest, self.nodes = self.tracker.nodes, self.tracker.nodes
-        self.snap_outline = None
+        self.snap_frame = frame.copy()
+
+    def _snap_again(self, frame: NDArray[np.uint8]) -> None:
+        """Snap the outline on the first frame again, with what moved between it and this
+        one (:func:`engine.tracking.snap.snap`'s ``next_frame``), and start the tracker
+        there anew: from this frame on, the track is the one ``efdm track --init-box``
+        gives.  A frame of another size has nothing to add.
+        """
+        first, outline = self.snap_frame, self.snap_outline
+        self.snap_frame = self.snap_outline = None
+        if self.tracker is None or first is None or outline is None:
+            return
+        if first.shape[:2] != frame.shape[:2]:
+            return
+        try:
+            mask = snap(first, outline, next_frame=frame)
+        except ValueError:
+            return  # the frame cannot be read with the first: the colour snap stands
+        self.tracker.reset(mask_to_contour(mask, len(self.tracker.nodes)))
+        self.tracker.step(first)
 
     def to_record(self, *, compact: bool = False) -> dict[str, Any]:
         """The whole session as JSON-able data (for a shared store).
@@ -319,6 +345,7 @@ class Session:
             "ttl": self.ttl,
             "tracker": None if self.tracker is None else self.tracker.to_state(compact=compact),
             "snap": self.snap_outline,
+            "snap_frame": None if self.snap_frame is None else frame_to_text(self.snap_frame),
             "objects": None if self.objects is None else self.objects.to_state(compact=compact),
         }
 
@@ -343,6 +370,9 @@ class Session:
                 frame_size=_size(record.get("frame_size")),
                 ttl=None if record.get("ttl") is None else float(record["ttl"]),
                 snap_outline=None if record.get("snap") is None else list(record["snap"]),
+                snap_frame=None
+                if record.get("snap_frame") is None
+                else frame_from_text(str(record["snap_frame"])),
                 objects=None
                 if record.get("objects") is None
                 else SessionObjects.from_state(record["objects"]),

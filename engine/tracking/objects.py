@@ -133,6 +133,9 @@ class ObjectsTracker:
             self.add(key, outline)
 
     def _make(self, outline: ArrayLike | Sequence[ArrayLike]) -> Tracker | PiecesTracker | Remote:
+        return self._held(self._build(outline))
+
+    def _build(self, outline: ArrayLike | Sequence[ArrayLike]) -> Tracker | PiecesTracker:
         tracker: Tracker | PiecesTracker
         if isinstance(outline, list | tuple) and _is_list_of_contours(outline):
             pieces = list(outline)
@@ -142,7 +145,7 @@ class ObjectsTracker:
                 tracker = Tracker(pieces[0], **self.options)
         else:
             tracker = Tracker(np.asarray(outline, dtype=np.float64), **self.options)
-        return self._held(tracker)
+        return tracker
 
     def _held(self, tracker: Tracker | PiecesTracker) -> Tracker | PiecesTracker | Remote:
         """``tracker`` itself, or handed to a worker process."""
@@ -169,6 +172,21 @@ class ObjectsTracker:
         made = self._make(outline)
         self._let_go(key)
         self.trackers[key] = made
+        self._forget_order(key)
+
+    def restart(
+        self, key: Hashable, outline: ArrayLike | Sequence[ArrayLike], frame: NDArray[np.uint8]
+    ) -> None:
+        """A correction of the frame just tracked: object ``key`` starts anew from ``outline``
+        on ``frame`` (that frame, given again) and goes on from there with the next, as if
+        ``outline`` had been given before it (KeyError if unknown, ValueError if malformed).
+        """
+        if key not in self.trackers:
+            raise KeyError(key)
+        made = self._build(outline)
+        made.step(frame)  # a first frame only starts a tracker: the others do not matter
+        self._let_go(key)
+        self.trackers[key] = self._held(made)
         self._forget_order(key)
 
     def remove(self, key: Hashable) -> None:

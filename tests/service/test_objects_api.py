@@ -184,8 +184,63 @@ def test_a_session_of_objects_survives_the_shared_store_record() -> None:
     result = restored.track(np.asarray(image, np.uint8))
     assert iou(result["objects"][0]["nodes"], (160, 120)) > 0.9
     again = Session.from_record(restored.to_record())
-    assert again.objects is not None
-    assert again.objects.waiting == {}
+    assert again.objects is not None  # the box is snapped again on the next frame
+    assert again.objects.waiting == {"1": {"again": BOX}}
+    assert again.objects.first is not None
+    np.testing.assert_array_equal(again.objects.first, image)
+    after = cv2.imdecode(np.frombuffer(disc_frame(165.0, 122.0), np.uint8), cv2.IMREAD_COLOR)
+    again.track(np.asarray(after, np.uint8))
+    done = Session.from_record(again.to_record())
+    assert done.objects is not None
+    assert done.objects.waiting == {}
+    assert done.objects.first is None
+
+
+def test_boxes_snap_again_on_the_second_frame_as_efdm_track_starts_them(
+    client: TestClient,
+) -> None:
+    """From the second frame on, a session of objects tracks what an ObjectsTracker started
+    from the snaps with the next frame tracks; a correction before it wins."""
+    from engine.geometry import mask_to_contours
+    from engine.tracking import ObjectsTracker
+    from engine.tracking.snap import snap
+    from tests.engine.scenes import decoy_scene
+
+    first, second, truth, _ = decoy_scene()
+    frames = [cv2.imencode(".png", f)[1].tobytes() for f in (first, second, second)]
+    ys, xs = np.nonzero(truth)
+    box = [int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1]
+    other = [10, 120, 50, 160]  # a box on the background: snapped too, a contour all the same
+    png = {"content-type": "image/png"}
+    objects = [{"box": box}, {"id": "b", "box": other}, {"id": "c", "box": other}]
+    sid = client.post("/v1/sessions", json={"objects": objects}).json()["id"]
+    url = f"/v1/sessions/{sid}"
+    answers = [client.post(f"{url}/frames", content=frames[0], headers=png).json()]
+    fixed = [[12, 122], [48, 122], [48, 158], [12, 158]]
+    put = client.put(f"{url}/objects/c", json={"nodes": fixed, "snap": False})
+    assert put.status_code == 200, put.text
+    answers += [client.post(f"{url}/frames", content=f, headers=png).json() for f in frames[1:]]
+
+    def contours(mask: np.ndarray) -> list[np.ndarray]:
+        return mask_to_contours(mask, 64, min_area=100.0)
+
+    library = ObjectsTracker(
+        {
+            "1": contours(snap(first, box, next_frame=second)),
+            "b": contours(snap(first, other, next_frame=second)),
+        }
+    )
+    library.step(first)
+    library.add("c", fixed)
+    for answer, frame in zip(answers[1:], (second, second), strict=True):
+        expected = library.step(frame)
+        for got, want in zip(answer["objects"], expected, strict=True):
+            assert got["id"] == str(want.id)
+            shape = got["nodes"] if "nodes" in got else got["contours"]
+            mine = [shape] if "nodes" in got else shape
+            assert len(mine) == len(want.contours)
+            for a, b in zip(mine, want.contours, strict=True):
+                np.testing.assert_allclose(a, b)
 
 
 def test_the_python_client_tracks_several_objects(live_server: LiveServer) -> None:

@@ -122,4 +122,52 @@ def test_a_pending_snap_survives_the_shared_store_record() -> None:
     assert restored.snap_outline == [118.0, 78.0, 203.0, 163.0]
     frame = cv2.imdecode(np.frombuffer(disc_frame(*CENTRE), np.uint8), cv2.IMREAD_COLOR)
     assert iou(restored.track(np.asarray(frame, np.uint8))["nodes"]) > 0.9
-    assert Session.from_record(restored.to_record()).snap_outline is None
+    kept = Session.from_record(restored.to_record())  # the first frame waits for the next
+    assert kept.snap_outline == restored.snap_outline
+    assert kept.snap_frame is not None
+    np.testing.assert_array_equal(kept.snap_frame, frame)
+    after = cv2.imdecode(np.frombuffer(disc_frame(165.0, 122.0), np.uint8), cv2.IMREAD_COLOR)
+    kept.track(np.asarray(after, np.uint8))
+    done = Session.from_record(kept.to_record())
+    assert done.snap_outline is None
+    assert done.snap_frame is None
+
+
+def decoded(data: bytes) -> np.ndarray:
+    return np.asarray(cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED), np.uint8)
+
+
+def test_the_second_frame_snaps_the_box_again_with_what_moved(client: TestClient) -> None:
+    """Frame 0 answers the snap from colour alone; from frame 1 on the session tracks what
+    a tracker started from the snap with the next frame tracks (``efdm track --init-box``),
+    through the shared store's record too."""
+    from engine import Tracker
+    from engine.geometry import mask_to_contour
+    from engine.tracking.snap import snap
+    from service.schemas import SessionCreate
+    from service.sessions import Session
+    from tests.engine.scenes import decoy_scene, shifted
+
+    first, second, truth, _ = decoy_scene()
+    third = second.copy()
+    frames = [cv2.imencode(".png", f)[1].tobytes() for f in (first, second, third)]
+    ys, xs = np.nonzero(truth)
+    box = [int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1]
+    png = {"content-type": "image/png"}
+    sid = client.post("/v1/sessions", json={"box": box}).json()["id"]
+    answers = [
+        client.post(f"/v1/sessions/{sid}/frames", content=f, headers=png).json()["nodes"]
+        for f in frames
+    ]
+    alone = Tracker(mask_to_contour(snap(first, box), 64))
+    np.testing.assert_allclose(answers[0], alone.step(first).nodes)
+    library = Tracker(mask_to_contour(snap(first, box, next_frame=second), 64))
+    library.step(first)
+    for answer, frame in zip(answers[1:], (second, third), strict=True):
+        np.testing.assert_allclose(answer, library.step(frame).nodes)
+    there = shifted(truth, 6.0, 3.0)  # the disc on the second frame
+    assert mask_iou(contour_to_mask(np.asarray(answers[1]), truth.shape), there) > 0.9
+    stored = Session.create(SessionCreate(box=tuple(map(float, box))), None, max_nodes=4096)
+    stored.track(decoded(frames[0]))
+    again = Session.from_record(stored.to_record())
+    np.testing.assert_allclose(again.track(decoded(frames[1]))["nodes"], answers[1])

@@ -74,6 +74,32 @@ def test_objects_are_added_corrected_and_removed_between_frames() -> None:
         )
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_restart_on_the_last_frame_is_as_if_the_outline_had_been_given_before_it(
+    workers: int,
+) -> None:
+    """The snap's second look: the outline is corrected on the frame just tracked."""
+    frames = CROWD.frames
+    outlines = {f"o{k}": mask_to_contour(CROWD.masks[k][0], 48) for k in range(3)}
+    given = ObjectsTracker(outlines, workers=workers)
+    wrong = dict(outlines, o1=circle_nodes((60, 60), 12, 48))
+    restarted = ObjectsTracker(wrong, workers=workers)
+    given.step(frames[0])
+    restarted.step(frames[0])
+    restarted.restart("o1", outlines["o1"], frames[0])
+    for frame in frames[1:4]:
+        for a, b in zip(given.step(frame), restarted.step(frame), strict=True):
+            assert a.id == b.id
+            np.testing.assert_array_equal(a.contours[0], b.contours[0])
+    with pytest.raises(KeyError):
+        restarted.restart("nobody", outlines["o1"], frames[3])
+    with pytest.raises(ValueError, match="N >= 3"):
+        restarted.restart("o1", [[0.0, 0.0]], frames[3])
+    np.testing.assert_array_equal(
+        restarted.contours("o1")[0], given.contours("o1")[0]
+    )  # a refused restart changes nothing
+
+
 def test_an_object_in_pieces_gives_its_contours() -> None:
     pieces = [circle_nodes((100, 100), 20, 32), circle_nodes((200, 100), 15, 24)]
     tracker = ObjectsTracker({"kite": pieces, "surfer": circle_nodes((300, 300), 25, 40)})
