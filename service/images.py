@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import base64
 import struct
 
 import cv2
@@ -98,21 +97,4 @@ def decode_frame(
         raise BadImageError("unsupported sample format")
     if frame.ndim == 3 and frame.shape[2] == 4:
         frame = cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
-    return np.asarray(frame, dtype=np.uint8)
-
-
-def frame_to_text(frame: NDArray[np.uint8]) -> str:
-    """A decoded frame (BGR or grey) as base64 PNG text: lossless, for a stored session."""
-    ok, png = cv2.imencode(".png", frame)
-    if not ok:
-        raise ValueError("the frame does not encode as PNG")
-    return base64.b64encode(png.tobytes()).decode("ascii")
-
-
-def frame_from_text(text: str) -> NDArray[np.uint8]:
-    """Inverse of :func:`frame_to_text`; ValueError if it is not such a frame."""
-    data = np.frombuffer(base64.b64decode(text, validate=True), np.uint8)
-    frame = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    if frame is None or frame.dtype != np.uint8 or frame.ndim not in (2, 3):
-        raise ValueError("a stored frame does not decode")
     return np.asarray(frame, dtype=np.uint8)

@@ -24,10 +24,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.geometry import box_outline, circle_nodes, contour_to_mask, mask_to_contours
-from engine.tracking import ObjectsTracker
+from engine.tracking import ObjectsTracker, pack_image, unpack_image
 from engine.tracking.snap import snap
 from service.domain_errors import InvalidInputError, ObjectNotFoundError
-from service.images import frame_from_text, frame_to_text
 from service.schemas import BOX_NODES, MAX_OBJECTS, Circle, ObjectSpec
 
 __all__ = ["SessionObjects", "first_contour", "outline_nodes"]
@@ -245,7 +244,7 @@ class SessionObjects:
 
     def to_state(self, *, compact: bool = False) -> dict[str, Any]:
         """JSON-able; :meth:`from_state` rebuilds it."""
-        first = None if self.first is None else frame_to_text(self.first)
+        first = None if self.first is None else pack_image(self.first)
         return {
             "tracker": self.tracker.to_state(compact=compact),
             "waiting": self.waiting,
@@ -262,7 +261,7 @@ class SessionObjects:
         return cls(
             ObjectsTracker.from_state(state["tracker"]),
             dict(waiting),
-            None if first is None else frame_from_text(str(first)),
+            None if first is None else unpack_image(str(first), colour=True),
         )
 
 

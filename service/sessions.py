@@ -18,9 +18,9 @@ from numpy.typing import NDArray
 from engine import Tracker, deform
 from engine.geometry import mask_to_contour
 from engine.physics import MODAL_METHODS
+from engine.tracking import pack_image, unpack_image
 from engine.tracking.snap import snap
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
-from service.images import frame_from_text, frame_to_text
 from service.objects import SessionObjects, first_contour, outline_nodes
 from service.schemas import LIMIT, SessionCreate
 from service.units import TIMES
@@ -345,7 +345,7 @@ class Session:
             "ttl": self.ttl,
             "tracker": None if self.tracker is None else self.tracker.to_state(compact=compact),
             "snap": self.snap_outline,
-            "snap_frame": None if self.snap_frame is None else frame_to_text(self.snap_frame),
+            "snap_frame": None if self.snap_frame is None else pack_image(self.snap_frame),
             "objects": None if self.objects is None else self.objects.to_state(compact=compact),
         }
 
@@ -372,7 +372,7 @@ class Session:
                 snap_outline=None if record.get("snap") is None else list(record["snap"]),
                 snap_frame=None
                 if record.get("snap_frame") is None
-                else frame_from_text(str(record["snap_frame"])),
+                else unpack_image(str(record["snap_frame"]), colour=True),
                 objects=None
                 if record.get("objects") is None
                 else SessionObjects.from_state(record["objects"]),

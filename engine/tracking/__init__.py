@@ -6,10 +6,12 @@
 refines the contour as the chain's equilibrium under the image forces
 (:func:`refine`) before the joint band segmentation.  The default stages are
 :class:`FlowMotion`, :class:`ColourHistogram`, :class:`RegionEdgeCues` and
-:class:`BandCut`.  Imports OpenCV (``import engine`` does not).
+:class:`BandCut`.  :func:`pack_image` and :func:`unpack_image` are the lossless text
+form in which states keep a frame.  Imports OpenCV (``import engine`` does not).
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
+from engine.tracking._state_codec import pack_image, unpack_image
 from engine.tracking._warm import warm_up
 from engine.tracking.appearance import ColourHistogram
 from engine.tracking.cues import RegionEdgeCues
@@ -49,6 +51,8 @@ __all__ = [
     "Tracker",
     "TrackerOptions",
     "label_mask",
+    "pack_image",
     "refine",
+    "unpack_image",
     "warm_up",
 ]

@@ -73,18 +73,20 @@ def unpack_raw(text: str, dtype: np.dtype[Any] | type, size: int | None) -> NDAr
 
 
 def pack_image(image: NDArray[np.uint8]) -> str:
-    """A single-channel uint8 image as base64 PNG (lossless)."""
+    """A uint8 image, grey (H x W) or BGR (H x W x 3), as base64 PNG text (lossless)."""
     ok, png = cv2.imencode(".png", image)
     if not ok:
         raise ValueError("image does not encode as PNG")
     return base64.b64encode(png.tobytes()).decode("ascii")
 
 
-def unpack_image(text: str) -> NDArray[np.uint8]:
-    """Inverse of :func:`pack_image`."""
+def unpack_image(text: str, *, colour: bool = False) -> NDArray[np.uint8]:
+    """Inverse of :func:`pack_image`: a grey image, or with ``colour`` the image as it was
+    packed (grey or BGR); ValueError if ``text`` is not such an image."""
     data = np.frombuffer(base64.b64decode(text, validate=True), np.uint8)
-    image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
-    if image is None:
+    flag = cv2.IMREAD_UNCHANGED if colour else cv2.IMREAD_GRAYSCALE
+    image = cv2.imdecode(data, flag) if data.size else None
+    if image is None or image.dtype != np.uint8 or image.ndim not in (2, 3):
         raise ValueError("image does not decode")
     return np.asarray(image, dtype=np.uint8)
 

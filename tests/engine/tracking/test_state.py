@@ -301,3 +301,18 @@ def test_a_version_1_state_is_refused_by_other_stages() -> None:
 
     with pytest.raises(ValueError, match="malformed"):
         Tracker.from_state(json.loads(VERSION_1.read_text()), motion=Still())
+
+
+def test_a_frame_is_kept_as_text_exactly_grey_or_colour() -> None:
+    from engine.tracking import pack_image, unpack_image
+
+    rng = np.random.default_rng(4)
+    colour = rng.integers(0, 256, (17, 23, 3), dtype=np.uint8)
+    grey = colour[..., 1].copy()
+    np.testing.assert_array_equal(unpack_image(pack_image(colour), colour=True), colour)
+    np.testing.assert_array_equal(unpack_image(pack_image(grey), colour=True), grey)
+    np.testing.assert_array_equal(unpack_image(pack_image(grey)), grey)
+    assert unpack_image(pack_image(colour)).shape == (17, 23)  # read grey unless asked
+    for bad in ("", base64.b64encode(b"not a png").decode()):
+        with pytest.raises(ValueError, match="decode"):
+            unpack_image(bad, colour=True)
