@@ -184,7 +184,8 @@ class Session:
                 self.tracker.reset(nodes)  # validates before anything changes
             except ValueError as exc:
                 raise InvalidInputError(f"forces: {exc}") from None
-        self.snap_outline = self.snap_frame = None  # the client's contour, not a snap's
+        if self.snap_frame is not None:  # snapped already: the client's contour stands
+            self.snap_outline = self.snap_frame = None
         self.nodes = nodes
         self.version += 1
         return U

@@ -171,3 +171,20 @@ def test_the_second_frame_snaps_the_box_again_with_what_moved(client: TestClient
     stored.track(decoded(frames[0]))
     again = Session.from_record(stored.to_record())
     np.testing.assert_allclose(again.track(decoded(frames[1]))["nodes"], answers[1])
+
+
+def test_forces_after_the_first_frame_are_not_undone_by_the_second_snap() -> None:
+    from service.schemas import SessionCreate
+    from service.sessions import Session
+
+    session = Session.create(SessionCreate(box=(118.0, 78.0, 203.0, 163.0)), None, max_nodes=4096)
+    session.track(decoded(disc_frame(*CENTRE)))
+    assert session.snap_frame is not None
+    forces = np.zeros((len(session.rest), 2))
+    forces[:, 0] = 30.0  # the whole contour 30 px to the right
+    session.apply_forces([tuple(f) for f in forces])
+    assert session.snap_outline is None
+    assert session.snap_frame is None
+    moved = session.nodes.copy()
+    result = session.track(decoded(disc_frame(*CENTRE)))  # the same frame: nothing to follow
+    assert np.abs(np.asarray(result["nodes"]).mean(axis=0) - moved.mean(axis=0)).max() < 15
