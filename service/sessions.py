@@ -21,7 +21,7 @@ from engine.physics import MODAL_METHODS
 from engine.tracking import pack_image, unpack_image
 from engine.tracking.snap import snap
 from service.domain_errors import BadImageError, InvalidInputError, PreconditionFailedError
-from service.objects import SessionObjects, first_contour, outline_nodes
+from service.objects import KEPT_FRAME_QUALITY, SessionObjects, first_contour, outline_nodes
 from service.schemas import LIMIT, SessionCreate
 from service.units import TIMES
 
@@ -328,7 +328,8 @@ class Session:
         """The whole session as JSON-able data (for a shared store).
 
         ``compact``: the tracker's compact, lossy state (tens of kB instead of
-        hundreds, :meth:`engine.Tracker.to_state`); everything else stays exact.
+        hundreds, :meth:`engine.Tracker.to_state`) and a first frame kept for the
+        second snap as JPEG; everything else stays exact.
         """
         return {
             "id": self.id,
@@ -346,7 +347,9 @@ class Session:
             "ttl": self.ttl,
             "tracker": None if self.tracker is None else self.tracker.to_state(compact=compact),
             "snap": self.snap_outline,
-            "snap_frame": None if self.snap_frame is None else pack_image(self.snap_frame),
+            "snap_frame": None
+            if self.snap_frame is None
+            else pack_image(self.snap_frame, quality=KEPT_FRAME_QUALITY if compact else None),
             "objects": None if self.objects is None else self.objects.to_state(compact=compact),
         }
 

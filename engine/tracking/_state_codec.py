@@ -72,8 +72,11 @@ def unpack_raw(text: str, dtype: np.dtype[Any] | type, size: int | None) -> NDAr
     return np.frombuffer(raw, dtype=kind).copy()
 
 
-def pack_image(image: NDArray[np.uint8]) -> str:
-    """A uint8 image, grey (H x W) or BGR (H x W x 3), as base64 PNG text (lossless)."""
+def pack_image(image: NDArray[np.uint8], *, quality: int | None = None) -> str:
+    """A uint8 image, grey (H x W) or BGR (H x W x 3), as base64 PNG text (lossless), or
+    given a JPEG ``quality`` (1-100) as base64 JPEG text (lossy, several times smaller)."""
+    if quality is not None:
+        return _jpeg(image, quality)
     ok, png = cv2.imencode(".png", image)
     if not ok:
         raise ValueError("image does not encode as PNG")
@@ -81,8 +84,8 @@ def pack_image(image: NDArray[np.uint8]) -> str:
 
 
 def unpack_image(text: str, *, colour: bool = False) -> NDArray[np.uint8]:
-    """Inverse of :func:`pack_image`: a grey image, or with ``colour`` the image as it was
-    packed (grey or BGR); ValueError if ``text`` is not such an image."""
+    """Inverse of :func:`pack_image` (PNG or JPEG): a grey image, or with ``colour`` the
+    image as it was packed (grey or BGR); ValueError if ``text`` is not such an image."""
     data = np.frombuffer(base64.b64decode(text, validate=True), np.uint8)
     flag = cv2.IMREAD_UNCHANGED if colour else cv2.IMREAD_GRAYSCALE
     image = cv2.imdecode(data, flag) if data.size else None

@@ -188,3 +188,27 @@ def test_forces_after_the_first_frame_are_not_undone_by_the_second_snap() -> Non
     moved = session.nodes.copy()
     result = session.track(decoded(disc_frame(*CENTRE)))  # the same frame: nothing to follow
     assert np.abs(np.asarray(result["nodes"]).mean(axis=0) - moved.mean(axis=0)).max() < 15
+
+
+def test_the_compact_record_keeps_the_first_frame_small_and_still_snaps_again() -> None:
+    """The shared store's record keeps the first frame as JPEG: a tenth of the PNG, and the
+    second snap from it lands where the exact one does."""
+    import json
+
+    from service.schemas import SessionCreate
+    from service.sessions import Session
+    from tests.engine.scenes import decoy_scene
+
+    first, second, truth, _ = decoy_scene()
+    ys, xs = np.nonzero(truth)
+    box = (float(xs.min()), float(ys.min()), float(xs.max()) + 1, float(ys.max()) + 1)
+    session = Session.create(SessionCreate(box=box), None, max_nodes=4096)
+    session.track(first)
+    exact, compact = session.to_record(), session.to_record(compact=True)
+    assert len(compact["snap_frame"]) * 3 < len(exact["snap_frame"])
+    assert len(json.dumps(compact)) < len(json.dumps(exact))
+    ways = [Session.from_record(record) for record in (exact, compact)]
+    answers = [np.asarray(way.track(second)["nodes"]) for way in ways]
+    shape = truth.shape
+    there = [contour_to_mask(a, shape) for a in answers]
+    assert mask_iou(there[0], there[1]) > 0.95

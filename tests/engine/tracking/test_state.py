@@ -313,6 +313,11 @@ def test_a_frame_is_kept_as_text_exactly_grey_or_colour() -> None:
     np.testing.assert_array_equal(unpack_image(pack_image(grey), colour=True), grey)
     np.testing.assert_array_equal(unpack_image(pack_image(grey)), grey)
     assert unpack_image(pack_image(colour)).shape == (17, 23)  # read grey unless asked
+    ramp = np.add.outer(np.arange(48), np.arange(64)).astype(np.uint8)  # smooth, as frames
+    smooth = np.stack([ramp, ramp[::-1], 255 - ramp], axis=2)
+    lossy = unpack_image(pack_image(smooth, quality=90), colour=True)
+    assert lossy.shape == smooth.shape
+    assert np.abs(lossy.astype(int) - smooth).mean() < 3  # JPEG: close, not exact
     for bad in ("", base64.b64encode(b"not a png").decode()):
         with pytest.raises(ValueError, match="decode"):
             unpack_image(bad, colour=True)
