@@ -261,7 +261,10 @@ def check_tracked(page: Page, snapshot: dict[str, Any]) -> None:
     cx = sum(x for x, _ in nodes) / len(nodes)
     cy = sum(y for _, y in nodes) / len(nodes)
     radius = sum(math.hypot(x - cx, y - cy) for x, y in nodes) / len(nodes)
-    assert math.hypot(cx - disc["x"], cy - disc["y"]) < 3, (cx, cy, disc)
+    # within 5 px of a 44 px disc: the page drops frames when the machine is busy, the
+    # disc then moves further between the frames tracked, and the flat disc's contour
+    # trails it by up to about 4 px (3.5 and 3.7 px seen at 0d5d975 under load)
+    assert math.hypot(cx - disc["x"], cy - disc["y"]) < 5, (cx, cy, disc)
     assert abs(radius - disc["r"]) < 3, (radius, disc)
     near, far = overlay_ring_pixels(page)
     assert near > 150, (near, far)
