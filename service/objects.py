@@ -38,7 +38,7 @@ MIN_PIECE_AREA = 100.0
 PNG_MAGIC = b"\x89PNG"
 KEPT_FRAME_QUALITY = 90
 """JPEG quality of the first frame kept for the second snap in a compact record (the shared
-store's): about 0.1 MB at 854 x 480 instead of the lossless PNG's 0.8-0.9 MB, for one
+store's): 0.11-0.14 MB at 854 x 480 instead of the lossless PNG's 0.8-1.0 MB, for one
 frame; the exact record keeps the PNG."""
 
 Contours = list[NDArray[np.float64]]
