@@ -2,6 +2,9 @@
 
 Imported lazily so that ``import engine.geometry`` does not start the
 compiler; numba caches the machine code on disk.
+Kernels use numba's ``error_model="numpy"``: no zero-division check in the
+loops, so they vectorise (every divisor is non-zero by construction; the
+results are bit for bit those of the default model).
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def polyline_crosses(points: NDArray[np.float64], closed: bool) -> bool:
     """Whether two non-adjacent edges of the polyline through ``points`` cross."""
     n = points.shape[0]
@@ -39,7 +42,7 @@ def polyline_crosses(points: NDArray[np.float64], closed: bool) -> bool:
     return False
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
     """Unit normals of a closed contour pointing out of it (see engine.geometry.outward_normals)."""
     n = nodes.shape[0]
@@ -58,7 +61,7 @@ def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def nearest(queries: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.int64]:
     """Index of the nearest of ``points`` to each query (see engine.geometry.nearest)."""
     found = np.empty(queries.shape[0], dtype=np.int64)

@@ -2,6 +2,9 @@
 
 Imported lazily, like :mod:`engine.tracking._image_kernels`.  Images are
 indexed ``[y, x]``; window centres are ``[x, y]`` pixels of the same region.
+Kernels use numba's ``error_model="numpy"``: no zero-division check in the
+loops, so they vectorise (every divisor is non-zero by construction; the
+results are bit for bit those of the default model).
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ COVERED = 0.3
 less coverage blends in the global model."""
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def learn_windows(
     bins: NDArray[np.uint16],
     inside: NDArray[np.uint8],
@@ -56,7 +59,7 @@ def learn_windows(
     return fg, bg
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def local_probability(
     bins: NDArray[np.uint16],
     wanted: NDArray[np.uint8],
@@ -114,7 +117,7 @@ def local_probability(
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def band_graph(
     distance: NDArray[np.float32],
     band: float,
@@ -187,16 +190,17 @@ def band_graph(
             yy, xx = y + dy, x + dx
             if yy < 0 or yy >= h or xx < 0 or xx >= w:
                 continue
+            other = index[yy * w + xx]
+            if other >= 0 and dy + dx < 0:
+                continue  # each free-free link once, from its upper-left end
             diff = 0.0
             for c in range(channels):
                 t = float(image[y, x, c]) - float(image[yy, xx, c])
                 diff += t * t
             cost = smooth * math.exp(-contrast * diff)
-            other = index[yy * w + xx]
             if other >= 0:
-                if dy + dx > 0:  # each free-free link once, from its upper-left end
-                    li[m], lj[m], lw[m] = k, other, cost
-                    m += 1
+                li[m], lj[m], lw[m] = k, other, cost
+                m += 1
             elif distance[yy, xx] > 0:
                 source[k] += cost
             else:

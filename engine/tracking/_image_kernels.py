@@ -4,6 +4,9 @@ Each kernel fuses what would otherwise be several whole-array passes (and
 several temporary arrays the size of the region of interest) into one.
 Imported lazily, like :mod:`engine.physics._kernels`; numba caches the machine code
 on disk.  Coordinates are ``[x, y]`` pixels; images are indexed ``[y, x]``.
+Kernels use numba's ``error_model="numpy"``: no zero-division check in the
+loops, so they vectorise (every divisor is non-zero by construction; the
+results are bit for bit those of the default model).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from numpy.typing import NDArray
 from engine.geometry._kernels import outward_normals
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _bin(image: NDArray[np.uint8], i: int, j: int, grey_bits: int, colour_bits: int) -> int:
     """Bin of pixel (i, j) of an H x W x 1 (grey) or H x W x 3 (BGR) image."""
     if image.shape[2] == 1:
@@ -29,7 +32,7 @@ def _bin(image: NDArray[np.uint8], i: int, j: int, grey_bits: int, colour_bits: 
     return (b << (2 * colour_bits)) | (g << colour_bits) | r
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def colour_bins(image: NDArray[np.uint8], grey_bits: int, colour_bits: int) -> NDArray[np.uint16]:
     """Histogram bin of every pixel in one pass (see engine.tracking.appearance.quantise).
 
@@ -43,7 +46,7 @@ def colour_bins(image: NDArray[np.uint8], grey_bits: int, colour_bits: int) -> N
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def colour_lookup(
     image: NDArray[np.uint8], grey_bits: int, colour_bits: int, table: NDArray[np.float32]
 ) -> NDArray[np.float32]:
@@ -56,7 +59,7 @@ def colour_lookup(
     return out
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _reflect101(k: int, n: int) -> int:
     """OpenCV's default border (``gfedcb|abcdefgh|gfedcba``) for one step outside."""
     if n == 1:
@@ -68,7 +71,7 @@ def _reflect101(k: int, n: int) -> int:
     return k
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sobel_at(
     s: NDArray[np.float32], up: int, i: int, down: int, left: int, j: int, right: int
 ) -> float:
@@ -81,7 +84,7 @@ def _sobel_at(
     return math.sqrt(gx * gx + gy * gy)
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath=True)
 def sobel_magnitude(smooth: NDArray[np.float32]) -> NDArray[np.float32]:
     """|gradient| by the 3 x 3 Sobel operator (as ``cv2.Sobel`` + ``cv2.magnitude``,
     with OpenCV's default reflect-101 border)."""
@@ -98,7 +101,7 @@ def sobel_magnitude(smooth: NDArray[np.float32]) -> NDArray[np.float32]:
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def scale_and_clip(image: NDArray[np.float32], factor: float) -> None:
     """``image = min(image * factor, 1)`` in place."""
     f = np.float32(factor)
@@ -109,7 +112,7 @@ def scale_and_clip(image: NDArray[np.float32], factor: float) -> None:
             image[i, j] = min(image[i, j] * f, one)
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _texel(image: NDArray[np.uint8], x: int, y: int) -> float:
     """``image[y, x]``, or 128 outside (``cv2.BORDER_CONSTANT``)."""
     if 0 <= x < image.shape[1] and 0 <= y < image.shape[0]:
@@ -117,7 +120,7 @@ def _texel(image: NDArray[np.uint8], x: int, y: int) -> float:
     return 128.0
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def occluded(
     prob: NDArray[np.float32],
     inside: NDArray[np.uint8],
@@ -177,7 +180,7 @@ def occluded(
     return where[:count].copy(), value[:count].copy()
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _bilinear(image: NDArray[np.float32], x: float, y: float) -> float:
     """Bilinear sample with replicated borders (as cv2.BORDER_REPLICATE)."""
     h, w = image.shape
@@ -194,7 +197,7 @@ def _bilinear(image: NDArray[np.float32], x: float, y: float) -> float:
     return float(top * (1.0 - fy) + bottom * fy)
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def boundary_search(
     prob: NDArray[np.float32],
     edges: NDArray[np.float32],
@@ -266,7 +269,7 @@ def boundary_search(
     return float(contrast / max(nodes.shape[0], 1))
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def contour_pull(
     prob: NDArray[np.float32],
     edges: NDArray[np.float32],
@@ -307,7 +310,27 @@ def contour_pull(
     return contrast
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def contrast_odds(
+    r_o: NDArray[np.float32], r_b: NDArray[np.float32], noise: float, gain: float
+) -> NDArray[np.float32]:
+    """``gain (r_b - r_o) / (r_b + r_o + noise)`` per pixel, in float32 throughout.
+
+    One pass over the two residual maps of :func:`engine.tracking.motion_contrast.motion_ratio`
+    instead of four temporaries; each operation is rounded to float32 as numpy's and
+    OpenCV's element-wise ones are, so the result is theirs bit for bit.
+    """
+    h, w = r_o.shape
+    out = np.empty((h, w), dtype=np.float32)
+    n = np.float32(noise)
+    g = np.float32(gain)
+    for i in range(h):
+        for j in range(w):
+            out[i, j] = g * (r_b[i, j] - r_o[i, j]) / (r_b[i, j] + r_o[i, j] + n)
+    return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def scale_odds(probability: NDArray[np.float32], ratio: NDArray[np.float32]) -> NDArray[np.float32]:
     """``p r / (p r + 1 - p)`` per pixel: the odds of p(object) ``p`` times ``r``."""
     h, w = probability.shape
@@ -320,7 +343,7 @@ def scale_odds(probability: NDArray[np.float32], ratio: NDArray[np.float32]) -> 
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def side_contrast(
     probability: NDArray[np.float32],
     origin_x: float,

@@ -1,6 +1,9 @@
 """The robust colour ratio of :mod:`engine.tracking.lighting`, compiled (numba).
 
 Imported lazily; numba caches the machine code on disk.
+Kernels use numba's ``error_model="numpy"``: no zero-division check in the
+loops, so they vectorise (every divisor is non-zero by construction; the
+results are bit for bit those of the default model).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ REACH = SCALE // 2
 is a cut, not a change of light, and is counted at the end of the range)."""
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _median(histogram: NDArray[np.int32], total: int) -> int:
     """Lower median of the values counted in ``histogram`` (bin k is value k - REACH)."""
     half = (total + 1) // 2
@@ -30,7 +33,7 @@ def _median(histogram: NDArray[np.int32], total: int) -> int:
     return 0
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def grid_sample(image: NDArray[np.uint8], grid: int) -> NDArray[np.uint8]:
     """(K, C) colours of an H x W x C image at every ``grid``-th pixel from ``grid // 2``."""
     h, w, c = image.shape
@@ -46,7 +49,7 @@ def grid_sample(image: NDArray[np.uint8], grid: int) -> NDArray[np.uint8]:
     return out
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def interior(
     inside: NDArray[np.uint8],
     reach: int,
@@ -82,7 +85,7 @@ def interior(
     return points[:m], colours[:m]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def carried(
     points: NDArray[np.int64],
     colours: NDArray[np.uint8],
@@ -110,7 +113,7 @@ def carried(
     return before[:m], after[:m]
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def ratio_step(
     before: NDArray[np.uint8],
     after: NDArray[np.uint8],

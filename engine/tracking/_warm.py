@@ -28,6 +28,7 @@ def warm_up() -> None:
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
     image.scale_odds(maps, maps)
+    image.contrast_odds(maps, maps, 12.0, 2.0)
     image.side_contrast(maps, 0.0, 0.0, square, 2)
     image.occluded(
         maps, np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint8), np.zeros((2, 3)), 0.35, 166

@@ -118,8 +118,9 @@ def motion_ratio(
         difference = cv2.absdiff(after, warped)
         return np.asarray(cv2.boxFilter(difference, cv2.CV_32F, (AVERAGE, AVERAGE)), np.float32)
 
-    r_o, r_b = residual(obj), residual(background)
-    odds = cv2.divide(r_b - r_o, r_b + r_o + np.float32(NOISE), scale=GAIN)
+    from engine.tracking._image_kernels import contrast_odds
+
+    odds = contrast_odds(residual(obj), residual(background), NOISE, GAIN)
     return np.asarray(cv2.exp(odds), np.float32)
 
 

@@ -167,3 +167,13 @@ def test_maps_reject_an_unknown_edge_step() -> None:
     plane = np.zeros((4, 4), np.float32)
     with pytest.raises(ValueError, match="edge_step"):
         Maps((0, 0), plane, plane, 3)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_contrast_odds_is_the_opencv_expression_bit_for_bit(seed: int) -> None:
+    """The fused motion-contrast log-odds equal cv2.divide of the numpy difference and sum."""
+    rng = np.random.default_rng(seed)
+    differences = rng.integers(0, 256, (2, 37, 53), dtype=np.uint8)
+    r_o, r_b = (np.asarray(cv2.boxFilter(d, cv2.CV_32F, (5, 5)), np.float32) for d in differences)
+    expected = cv2.divide(r_b - r_o, r_b + r_o + np.float32(12.0), scale=2.0)
+    np.testing.assert_array_equal(kernels.contrast_odds(r_o, r_b, 12.0, 2.0), expected)
