@@ -131,8 +131,9 @@ def evidence(maps: Maps, nodes: NDArray[np.float64], settled: bool) -> Evidence:
     outside = float(p[ring].mean()) if found_out else 0.5
     if maps.motion is None or not (found_in and found_out):
         return Evidence(inside, outside, settled)
-    odds = np.asarray(cv2.log(maps.motion), np.float32)
-    moved_in, moved_out = float(odds[inner].mean()), float(odds[ring].mean())
+    # the log of the counted pixels only, not of the whole map
+    odds_in, odds_out = cv2.log(maps.motion[inner]).ravel(), cv2.log(maps.motion[ring]).ravel()
+    moved_in, moved_out = float(odds_in.mean()), float(odds_out.mean())
     return Evidence(inside, outside, settled, moved_in, moved_out, True)
 
 

@@ -94,9 +94,9 @@ def unoccluded(
     if len(where) == 0:
         return maps, maps
     prob = maps.probability.copy()
-    prob.flat[where] = NEUTRAL
+    prob.reshape(-1)[where] = NEUTRAL  # a view of the copy: faster than .flat
     memory = maps.probability.copy()
-    memory.flat[where] = was
+    memory.reshape(-1)[where] = was
     return (
         Maps(maps.origin, prob, maps.edges, maps.edge_step, observed=maps.probability),
         Maps(maps.origin, memory, maps.edges, maps.edge_step),

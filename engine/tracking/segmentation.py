@@ -222,7 +222,8 @@ def _largest_piece(
         return None
     share = np.bincount(labels[prior > 0], minlength=pieces)[1:]
     best = int(np.argmax(share))
-    size = int(np.count_nonzero(labels == best + 1))
+    piece = labels == best + 1
+    size = int(np.count_nonzero(piece))
     second = np.sort(share)[-2] if len(share) > 1 else 0
     if (
         size <= MIN_PIXELS
@@ -230,4 +231,4 @@ def _largest_piece(
         or second > SPLIT_SHARE * share[best]
     ):
         return None
-    return mask_to_contour(labels == best + 1, count)
+    return mask_to_contour(piece, count)
