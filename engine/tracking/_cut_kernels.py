@@ -15,6 +15,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.tracking._image_kernels import pixel_bin
+
 PROBABILITY_FLOOR = 1e-3
 """p(object) is clipped to [1e-3, 1 - 1e-3]: a colour never seen on one side
 costs at most log(999) ~ 7 in the cut, not infinity."""
@@ -31,7 +33,9 @@ less coverage blends in the global model."""
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def learn_windows(
-    bins: NDArray[np.uint16],
+    image: NDArray[np.uint8],
+    grey_bits: int,
+    colour_bits: int,
     inside: NDArray[np.uint8],
     outside: NDArray[np.uint8],
     centres: NDArray[np.int64],
@@ -40,11 +44,14 @@ def learn_windows(
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Object and background colour counts of square windows.
 
-    ``bins``: colour bin per pixel; ``inside``/``outside``: 1 where a pixel is
+    ``image``: H x W x C (C = 1 grey, 3 BGR), binned at ``grey_bits`` /
+    ``colour_bits`` as :func:`engine.tracking._image_kernels.colour_bins` does,
+    but only where a window counts a pixel (the windows cover the contour's
+    band, not the box's interior); ``inside``/``outside``: 1 where a pixel is
     surely object / surely background; ``centres``: (K, 2) ``[x, y]`` window
     centres; ``half``: half the window's side.  Returns (K, nbins) counts.
     """
-    h, w = bins.shape
+    h, w = inside.shape
     k = centres.shape[0]
     fg = np.zeros((k, nbins), dtype=np.float32)
     bg = np.zeros((k, nbins), dtype=np.float32)
@@ -53,15 +60,17 @@ def learn_windows(
         for y in range(max(cy - half, 0), min(cy + half + 1, h)):
             for x in range(max(cx - half, 0), min(cx + half + 1, w)):
                 if inside[y, x]:
-                    fg[n, bins[y, x]] += 1.0
+                    fg[n, pixel_bin(image, y, x, grey_bits, colour_bits)] += 1.0
                 elif outside[y, x]:
-                    bg[n, bins[y, x]] += 1.0
+                    bg[n, pixel_bin(image, y, x, grey_bits, colour_bits)] += 1.0
     return fg, bg
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def local_probability(
-    bins: NDArray[np.uint16],
+    image: NDArray[np.uint8],
+    grey_bits: int,
+    colour_bits: int,
     wanted: NDArray[np.uint8],
     centres: NDArray[np.int64],
     half: int,
@@ -78,9 +87,10 @@ def local_probability(
     saw the colour (``trust`` sightings: fully); ``fallback`` (the global
     model's p) fills in the rest.  Windows are weighted by a Gaussian of the
     distance to their centre.  Only pixels where ``wanted`` is set are
-    computed; the others keep ``fallback``.
+    computed; the others keep ``fallback``.  ``image`` is binned as for
+    :func:`learn_windows`, where a window needs a pixel.
     """
-    h, w = bins.shape
+    h, w = wanted.shape
     nb_ = fg.shape[1]
     num = np.zeros((h, w), dtype=np.float32)
     den = np.zeros((h, w), dtype=np.float32)
@@ -100,7 +110,7 @@ def local_probability(
             for x in range(max(cx - half, 0), min(cx + half + 1, w)):
                 if not wanted[y, x]:
                     continue
-                c = bins[y, x]
+                c = pixel_bin(image, y, x, grey_bits, colour_bits)
                 pf = (fg[n, c] + UNSEEN) / zf
                 pb = (bg[n, c] + UNSEEN) / zb
                 seen = min((fg[n, c] + bg[n, c]) / trust, 1.0)

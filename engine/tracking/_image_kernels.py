@@ -21,7 +21,7 @@ from engine.geometry._kernels import outward_normals
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _bin(image: NDArray[np.uint8], i: int, j: int, grey_bits: int, colour_bits: int) -> int:
+def pixel_bin(image: NDArray[np.uint8], i: int, j: int, grey_bits: int, colour_bits: int) -> int:
     """Bin of pixel (i, j) of an H x W x 1 (grey) or H x W x 3 (BGR) image."""
     if image.shape[2] == 1:
         return int(image[i, j, 0]) >> (8 - grey_bits)
@@ -42,7 +42,7 @@ def colour_bins(image: NDArray[np.uint8], grey_bits: int, colour_bits: int) -> N
     out = np.empty((h, w), dtype=np.uint16)
     for i in range(h):
         for j in range(w):
-            out[i, j] = _bin(image, i, j, grey_bits, colour_bits)
+            out[i, j] = pixel_bin(image, i, j, grey_bits, colour_bits)
     return out
 
 
@@ -55,8 +55,46 @@ def colour_lookup(
     out = np.empty((h, w), dtype=np.float32)
     for i in range(h):
         for j in range(w):
-            out[i, j] = table[_bin(image, i, j, grey_bits, colour_bits)]
+            out[i, j] = table[pixel_bin(image, i, j, grey_bits, colour_bits)]
     return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def taught_counts(
+    image: NDArray[np.uint8],
+    grey_bits: int,
+    colour_bits: int,
+    mask: NDArray[np.uint8],
+    inner: NDArray[np.uint8],
+    outer: NDArray[np.uint8],
+    table: NDArray[np.float32],
+    above: np.float32,
+    below: np.float32,
+    bins: int,
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Colour-bin counts of the object's pixels and of its ring's, in one pass.
+
+    The object's are the ``inner`` pixels (non-zero) whose ``table[bin]`` is
+    above ``above``; the ring's are the ``outer`` pixels outside ``mask`` whose
+    ``table[bin]`` is below ``below``.  An empty ``table`` takes every such pixel.
+    The thresholds are float32, compared as numpy compares a float32 array with
+    a Python float.  (See :func:`engine.tracking.appearance.Histograms.updated`.)
+    """
+    h, w = image.shape[0], image.shape[1]
+    obj = np.zeros(bins, dtype=np.int64)
+    ring = np.zeros(bins, dtype=np.int64)
+    check = table.shape[0] > 0
+    for i in range(h):
+        for j in range(w):
+            if inner[i, j]:
+                b = pixel_bin(image, i, j, grey_bits, colour_bits)
+                if not check or table[b] > above:
+                    obj[b] += 1
+            elif outer[i, j] and not mask[i, j]:
+                b = pixel_bin(image, i, j, grey_bits, colour_bits)
+                if not check or table[b] < below:
+                    ring[b] += 1
+    return obj, ring
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -14,6 +14,7 @@ def warm_up() -> None:
     tracked frame does not pay the compilation.
     """
     from engine.geometry import _kernels as geometry
+    from engine.tracking import _cut_kernels as cut
     from engine.tracking import _image_kernels as image
     from engine.tracking._refine_kernel import refine_chain
 
@@ -25,6 +26,15 @@ def warm_up() -> None:
     for picture in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):
         image.colour_bins(picture, 5, 4)
         image.colour_lookup(picture, 5, 4, table)
+        flags = np.ones((2, 2), np.uint8)
+        above, below = np.float32(0.5), np.float32(0.5)
+        for lut in (table, np.empty(0, np.float32)):
+            image.taught_counts(picture, 5, 4, flags, flags, flags, lut, above, below, 4096)
+        centres = np.zeros((1, 2), np.int64)
+        fg, bg = cut.learn_windows(picture, 5, 3, flags, flags, centres, 1, 512)
+        half = np.full((2, 2), 0.5, np.float32)
+        cut.local_probability(picture, 5, 3, flags, centres, 1, fg, bg, 12.0, 1.0, half)
+        cut.band_graph(half, 1.0, picture, half, np.ones(4))
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
     image.scale_odds(maps, maps)

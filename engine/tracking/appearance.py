@@ -50,12 +50,12 @@ def quantise(
     """Histogram bin of every pixel (by default BGR: 16^3 bins; grey: 32), one compiled pass."""
     from engine.tracking._image_kernels import colour_bins
 
-    bins: NDArray[np.uint16] = colour_bins(_three_d(image), grey_bits, colour_bits)
+    bins: NDArray[np.uint16] = colour_bins(kernel_image(image), grey_bits, colour_bits)
     return bins
 
 
-def _three_d(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """A contiguous H x W x C view or copy (grey images get C = 1), for the kernels."""
+def kernel_image(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A contiguous H x W x C view or copy (grey images get C = 1), as the colour kernels take."""
     arr = np.ascontiguousarray(image, dtype=np.uint8)
     return arr[..., None] if arr.ndim == 2 else arr
 
@@ -123,7 +123,7 @@ class Histograms:
         if bin_count(image) != len(lut):
             return np.full(image.shape[:2], UNKNOWN, dtype=np.float32)
         result: NDArray[np.float32] = colour_lookup(
-            _three_d(image), _GREY_BITS, _COLOUR_BITS, np.ascontiguousarray(lut)
+            kernel_image(image), _GREY_BITS, _COLOUR_BITS, np.ascontiguousarray(lut)
         )
         return result
 
@@ -200,6 +200,8 @@ def _histograms(
     table: NDArray[np.float32] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Object and background histograms; with a ``table``, only agreeing pixels."""
+    from engine.tracking._image_kernels import taught_counts
+
     # the ring, two pixels of slack, and one more past the box's exclusive end
     x0, y0, x1, y1 = bounding_box(frame.shape, nodes, band + 2, band + 3, keep_inside=False)
     n_bins = bin_count(frame)
@@ -209,15 +211,21 @@ def _histograms(
     mask = contour_to_mask(nodes - [x0, y0], roi.shape)
     # a square ring: dilation by a rectangle is separable, hence cheap
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * band + 1, 2 * band + 1))
-    outer = cv2.dilate(mask, kernel) > 0
+    outer = np.asarray(cv2.dilate(mask, kernel), np.uint8)
     inset = np.ones((2 * OBJECT_INSET + 1, 2 * OBJECT_INSET + 1), np.uint8)
-    inner = cv2.erode(mask, inset) > 0
-    bins = quantise(roi)
-    ring = outer & (mask == 0)
-    if table is not None and len(table) == n_bins:
-        p = table[bins]
-        inner &= p > TEACH_OBJECT_ABOVE
-        ring &= p < TEACH_BACKGROUND_BELOW
-    obj = np.bincount(bins[inner], minlength=n_bins).astype(np.float64)
-    bg = np.bincount(bins[ring], minlength=n_bins).astype(np.float64)
+    inner = np.asarray(cv2.erode(mask, inset), np.uint8)
+    check = table is not None and len(table) == n_bins
+    counts = taught_counts(
+        kernel_image(roi),
+        _GREY_BITS,
+        _COLOUR_BITS,
+        mask,
+        inner,
+        outer,
+        np.ascontiguousarray(table if check else np.empty(0), np.float32),
+        np.float32(TEACH_OBJECT_ABOVE),
+        np.float32(TEACH_BACKGROUND_BELOW),
+        n_bins,
+    )
+    obj, bg = (c.astype(np.float64) for c in counts)
     return obj / max(obj.sum(), 1.0), bg / max(bg.sum(), 1.0)

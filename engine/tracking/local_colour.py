@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from engine.geometry import contour_to_mask, perimeter
 from engine.tracking._state_codec import pack_counts, unpack_counts
 from engine.tracking.appearance import bin_count as histogram_bins
-from engine.tracking.appearance import quantise
+from engine.tracking.appearance import kernel_image
 
 __all__ = ["WINDOWS", "LocalColour"]
 
@@ -48,11 +48,6 @@ TRUST = 12.0
 """A window trusts its own p(object) for a colour fully after 12 sightings of it."""
 MIN_COUNT = 10.0
 """A window with fewer pixels than this on either side says nothing."""
-
-
-def colour_bins(image: NDArray[np.uint8]) -> NDArray[np.uint16]:
-    """Bin of every pixel (BGR: 8^3 bins; grey: 32)."""
-    return quantise(image, GREY_BITS, COLOUR_BITS)
 
 
 def bin_count(image: NDArray[np.uint8]) -> int:
@@ -107,8 +102,16 @@ class LocalColour:
         inside = (cv2.erode(mask, kernel) > 0).astype(np.uint8)
         outside = (cv2.dilate(mask, kernel) == 0).astype(np.uint8)
         centres = np.round(nodes[window_nodes(len(nodes))] - [x0, y0]).astype(np.int64)
-        bins = colour_bins(image[y0:y1, x0:x1])
-        fg, bg = learn_windows(bins, inside, outside, centres, half, bin_count(image))
+        fg, bg = learn_windows(
+            kernel_image(image[y0:y1, x0:x1]),
+            GREY_BITS,
+            COLOUR_BITS,
+            inside,
+            outside,
+            centres,
+            half,
+            bin_count(image),
+        )
         return cls(half, len(nodes), fg, bg)
 
     def probability(
@@ -146,7 +149,9 @@ class LocalColour:
             return fallback
         points = (nodes[window_nodes(len(nodes))] - np.asarray(origin) + 0.5) / scale - 0.5
         result: NDArray[np.float32] = local_probability(
-            colour_bins(region),
+            kernel_image(region),
+            GREY_BITS,
+            COLOUR_BITS,
             wanted,
             np.round(points).astype(np.int64),
             max(1, round(self.half / scale)),

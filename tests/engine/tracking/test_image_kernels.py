@@ -177,3 +177,32 @@ def test_contrast_odds_is_the_opencv_expression_bit_for_bit(seed: int) -> None:
     r_o, r_b = (np.asarray(cv2.boxFilter(d, cv2.CV_32F, (5, 5)), np.float32) for d in differences)
     expected = cv2.divide(r_b - r_o, r_b + r_o + np.float32(12.0), scale=2.0)
     np.testing.assert_array_equal(kernels.contrast_odds(r_o, r_b, 12.0, 2.0), expected)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_taught_counts_are_the_bincounts_of_the_agreeing_pixels(channels: int) -> None:
+    """One pass equals quantise, the table's verdict and two bincounts (thresholds hit exactly)."""
+    rng = np.random.default_rng(channels)
+    image = rng.integers(0, 256, (41, 57, channels), dtype=np.uint8)
+    grey_bits, colour_bits = 5, 4
+    bins = quantise(image[..., 0] if channels == 1 else image, grey_bits, colour_bits)
+    n_bins = 1 << (grey_bits if channels == 1 else 3 * colour_bits)
+    above, below = 0.55, 0.9
+    table = rng.random(n_bins).astype(np.float32)
+    table[::7] = np.float32(above)  # at the thresholds: compared in float32, as numpy does
+    table[3::7] = np.float32(below)
+    mask = (rng.random(image.shape[:2]) < 0.5).astype(np.uint8)
+    inner = mask * (rng.random(image.shape[:2]) < 0.8).astype(np.uint8)
+    outer = np.maximum(mask, (rng.random(image.shape[:2]) < 0.6).astype(np.uint8))
+    ring = (outer > 0) & (mask == 0)
+    for lut in (table, np.empty(0, np.float32)):
+        obj, bg = kernels.taught_counts(
+            image, grey_bits, colour_bits, mask, inner, outer, lut,
+            np.float32(above), np.float32(below), n_bins,
+        )  # fmt: skip
+        inside, around = inner > 0, ring.copy()
+        if len(lut):
+            inside &= table[bins] > above
+            around &= table[bins] < below
+        np.testing.assert_array_equal(obj, np.bincount(bins[inside], minlength=n_bins))
+        np.testing.assert_array_equal(bg, np.bincount(bins[around], minlength=n_bins))

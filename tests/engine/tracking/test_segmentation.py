@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking import BandCut, Maps, Tracker
 from engine.tracking._cut_kernels import PROBABILITY_FLOOR, SHAPE_CLIP
+from engine.tracking.appearance import quantise
 from engine.tracking.local_colour import LocalColour
 from engine.tracking.segmentation import (
     COLOUR_WEIGHT,
@@ -212,3 +213,44 @@ def test_the_tracker_follows_a_growing_thin_part() -> None:
     iou_cut = mask_iou(contour_to_mask(b.nodes, last.shape), last)
     assert iou_cut >= 0.93
     assert iou_cut > iou_chain
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_the_window_kernels_bin_each_pixel_they_read_as_quantise_does(channels: int) -> None:
+    """Windows counting from the image equal windows counting a precomputed bin map."""
+    from engine.tracking._cut_kernels import learn_windows, local_probability
+
+    rng = np.random.default_rng(channels)
+    image = rng.integers(0, 256, (50, 60, channels), dtype=np.uint8)
+    grey_bits, colour_bits = 5, 3
+    bins = quantise(image[..., 0] if channels == 1 else image, grey_bits, colour_bits)
+    n_bins = 1 << (grey_bits if channels == 1 else 3 * colour_bits)
+    inside = (rng.random(bins.shape) < 0.4).astype(np.uint8)
+    outside = (1 - inside) * (rng.random(bins.shape) < 0.7).astype(np.uint8)
+    centres = np.array([[5, 5], [30, 20], [58, 48], [20, 40]], np.int64)
+    fg, bg = learn_windows(image, grey_bits, colour_bits, inside, outside, centres, 8, n_bins)
+    for n, (cx, cy) in enumerate(centres):
+        window = np.s_[max(cy - 8, 0) : cy + 9, max(cx - 8, 0) : cx + 9]
+        np.testing.assert_array_equal(
+            fg[n], np.bincount(bins[window][inside[window] > 0], minlength=n_bins)
+        )
+        np.testing.assert_array_equal(
+            bg[n], np.bincount(bins[window][outside[window] > 0], minlength=n_bins)
+        )
+    fallback = np.full(bins.shape, 0.5, np.float32)
+    wanted = np.ones(bins.shape, np.uint8)
+    p = local_probability(
+        image, grey_bits, colour_bits, wanted, centres, 8, fg, bg, 12.0, 1.0, fallback
+    )
+    # a window's own colours: each pixel's p follows its bin's counts in the windows over it
+    solo = local_probability(
+        image, grey_bits, colour_bits, wanted, centres[:1], 8, fg[:1], bg[:1], 12.0, 1.0, fallback
+    )
+    y, x = 5, 5
+    c = bins[y, x]
+    pf = (fg[0, c] + 0.01) / (fg[0].sum() + 0.01 * n_bins)
+    pb = (bg[0, c] + 0.01) / (bg[0].sum() + 0.01 * n_bins)
+    seen = min((fg[0, c] + bg[0, c]) / 12.0, 1.0)
+    assert solo[y, x] == pytest.approx(seen * pf / (pf + pb) + (1 - seen) * 0.5, rel=1e-5)
+    assert p.shape == bins.shape
+    assert np.all((p >= 0) & (p <= 1))
