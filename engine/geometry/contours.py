@@ -102,6 +102,12 @@ def resample(nodes: Nodes, count: int, *, closed: bool = True) -> Nodes:
     closed : bool
         Whether the last node joins the first.
     """
+    points = np.ascontiguousarray(nodes, dtype=np.float64)
+    if points.ndim == 2 and len(points) >= 2 and np.isfinite(points).all():
+        from engine.geometry._kernels import resample_polyline
+
+        resampled: Nodes = resample_polyline(points, count, closed)
+        return resampled
     pts = np.vstack([nodes, nodes[:1]]) if closed else nodes
     seg = np.hypot(*np.diff(pts, axis=0).T)
     arc = np.concatenate([[0.0], np.cumsum(seg)])

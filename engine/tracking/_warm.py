@@ -22,6 +22,7 @@ def warm_up() -> None:
     geometry.polyline_crosses(square, True)
     geometry.outward_normals(square)
     geometry.nearest(square, square)
+    geometry.resample_polyline(square, 4, True)
     table = np.zeros(4096, np.float32)
     for picture in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):
         image.colour_bins(picture, 5, 4)

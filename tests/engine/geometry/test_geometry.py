@@ -6,6 +6,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from numpy.typing import NDArray
 
 from engine.geometry import (
@@ -117,6 +120,43 @@ def test_resample_zero_length_contour_repeats_its_point(closed: bool) -> None:
     assert out.shape == (9, 2)
     assert out.dtype == np.float64
     np.testing.assert_array_equal(out, np.full((9, 2), 7.25))
+
+
+def numpy_resample(nodes: F64, count: int, closed: bool) -> F64:
+    """The resampling as whole-array numpy calls: what the compiled loop must equal."""
+    pts = np.vstack([nodes, nodes[:1]]) if closed else nodes
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    if not arc[-1] > 0:
+        return np.repeat(nodes[:1], count, axis=0).astype(np.float64)
+    targets = np.linspace(0.0, arc[-1], count, endpoint=not closed)
+    return np.stack([np.interp(targets, arc, pts[:, 0]), np.interp(targets, arc, pts[:, 1])], 1)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    nodes=arrays(
+        np.float64,
+        st.tuples(st.integers(2, 60), st.just(2)),
+        elements=st.sampled_from([0.0, 1.0, 2.5, 7.0])
+        | st.floats(-1e3, 1e3, allow_nan=False, allow_subnormal=False),
+    ),
+    count=st.integers(1, 200),
+    closed=st.booleans(),
+)
+def test_resample_is_the_numpy_computation_bit_for_bit(
+    nodes: F64, count: int, closed: bool
+) -> None:
+    """Duplicates, collinear and zero-length polylines included (the few values repeat)."""
+    np.testing.assert_array_equal(
+        resample(nodes, count, closed=closed), numpy_resample(nodes, count, closed)
+    )
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_resample_of_non_finite_nodes_is_numpys(closed: bool) -> None:
+    nodes = np.array([[0.0, 0.0], [np.nan, 1.0], [3.0, 4.0]])
+    out = resample(nodes, 5, closed=closed)
+    np.testing.assert_array_equal(out, numpy_resample(nodes, 5, closed))
 
 
 # --- perimeter -------------------------------------------------------------------------------
