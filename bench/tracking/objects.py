@@ -7,7 +7,7 @@ threads and on two worker processes, against each object tracked alone, and writ
 ``objects.md`` and ``objects.json``: each object's mean IoU with its own (amodal) mask,
 identity swaps (an object's contour closer to another's mask than to its own at the last
 frame), and the median time per frame (the faster of two passes, each from a fresh
-tracker: :data:`PASSES`).
+tracker: :data:`PASSES`; every way of tracking once per pass, in turn).
 """
 
 from __future__ import annotations
@@ -36,23 +36,35 @@ LENGTH = 40
 NODES = 64
 
 
-def _median_ms(make: Callable[[], Any], frames: tuple[Any, ...]) -> float:
-    """The fastest of :data:`PASSES` medians of a fresh tracker's ms per frame (frames 1..)."""
-    best = math.inf
-    for _ in range(PASSES):
-        tracker = make()
-        try:
-            tracker.step(frames[0])
-            times = []
-            for frame in frames[1:]:
-                start = time.perf_counter()
-                tracker.step(frame)
-                times.append(time.perf_counter() - start)
-        finally:
-            close = getattr(tracker, "close", None)
-            if close is not None:
-                close()
-        best = min(best, float(np.median(times) * 1e3))
+def _pass_ms(make: Callable[[], Any], frames: tuple[Any, ...]) -> float:
+    """The median ms per frame (frames 1..) of a fresh tracker from ``make``."""
+    tracker = make()
+    try:
+        tracker.step(frames[0])
+        times = []
+        for frame in frames[1:]:
+            start = time.perf_counter()
+            tracker.step(frame)
+            times.append(time.perf_counter() - start)
+    finally:
+        close = getattr(tracker, "close", None)
+        if close is not None:
+            close()
+    return float(np.median(times) * 1e3)
+
+
+def _fastest_ms(makers: dict[str, Callable[[], Any]], frames: tuple[Any, ...]) -> dict[str, float]:
+    """Each maker's fastest of :data:`PASSES` medians, the makers interleaved pass by pass.
+
+    Every pass times each way of tracking once, in turn (the order reversed every other
+    pass), so the one-object and the several-object times of a ratio come from the same
+    minutes of the machine, not from its quieter and busier ones.
+    """
+    best = dict.fromkeys(makers, math.inf)
+    names = list(makers)
+    for k in range(PASSES):
+        for name in names if k % 2 == 0 else names[::-1]:
+            best[name] = min(best[name], _pass_ms(makers[name], frames))
     return best
 
 
@@ -84,22 +96,20 @@ def run() -> dict[str, Any]:
             mask = contour_to_mask(r.contours[0], crowd.frames[-1].shape[:2])
             scores = [mask_iou(mask, crowd.masks[j][-1]) for j in range(count)]
             swaps += int(np.argmax(scores) != k)
-        alone = float(
-            np.mean([_median_ms(partial(Tracker, start[k]), crowd.frames) for k in range(count)])
-        )
-        together = {
-            workers: _median_ms(partial(ObjectsTracker, start, workers=workers), crowd.frames)
-            for workers in (1, 2)
+        makers: dict[str, Callable[[], Any]] = {
+            f"alone {k}": partial(Tracker, start[k]) for k in range(count)
         }
-        remote = partial(ObjectsTracker, start, workers=2, processes=True)
-        processes = _median_ms(remote, crowd.frames)
+        makers["together"] = partial(ObjectsTracker, start, workers=1)
+        makers["two threads"] = partial(ObjectsTracker, start, workers=2)
+        makers["two processes"] = partial(ObjectsTracker, start, workers=2, processes=True)
+        ms = _fastest_ms(makers, crowd.frames)
         out[f"seed {seed}"] = {
             "iou": ious[:, 1:].mean(axis=1).tolist(),
             "swaps": swaps,
-            "alone_ms": alone,
-            "together_ms": together[1],
-            "two_threads_ms": together[2],
-            "two_processes_ms": processes,
+            "alone_ms": float(np.mean([ms[f"alone {k}"] for k in range(count)])),
+            "together_ms": ms["together"],
+            "two_threads_ms": ms["two threads"],
+            "two_processes_ms": ms["two processes"],
         }
     return out
 
@@ -113,7 +123,7 @@ def render(results: dict[str, Any], seconds: float) -> str:
         " `python -m bench.tracking.objects`",
         f"- `engine.testing.crowd`: 8 objects, {NODES} nodes each, 640 x 480, {LENGTH} frames;"
         " IoU against each object's amodal mask, frames 1..T-1; times: median ms per frame,"
-        f" the fastest of {PASSES} passes",
+        f" the fastest of {PASSES} passes, every way of tracking timed once a pass, in turn",
         "",
         "| scene | mean IoU per object (goal >= 0.9 each) | worst | swaps | one object alone "
         "(ms, mean) | 8 objects, 1 thread (goal <= 6x) | 8 objects, 2 threads "

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
+import pytest
+
 from bench.tracking import objects
 
 
@@ -19,3 +23,24 @@ def test_the_report_gives_ratios_and_the_worst_object() -> None:
     report = objects.render(results, 12.0)
     row = "| seed 0 | 0.99 0.75 | 0.75 | 0 | 4.0 | 32.0 (8.0x) | 20.0 (5.0x) | 18.0 (4.5x) |"
     assert row in report
+
+
+def test_every_way_is_timed_once_a_pass_in_turn_and_the_fastest_pass_counts(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    calls: list[str] = []
+    timings = {"alone": iter([5.0, 4.0]), "together": iter([30.0, 33.0])}
+
+    def fake_pass(make: Callable[[], str], frames: tuple[object, ...]) -> float:
+        name = make()
+        calls.append(name)
+        return next(timings[name])
+
+    monkeypatch.setattr(objects, "_pass_ms", fake_pass)
+    makers: dict[str, Callable[[], object]] = {
+        "alone": lambda: "alone",
+        "together": lambda: "together",
+    }
+    best = objects._fastest_ms(makers, ())
+    assert calls == ["alone", "together", "together", "alone"][: 2 * objects.PASSES]
+    assert best == {"alone": 4.0, "together": 30.0}
