@@ -173,8 +173,10 @@ class Lighting:
         shape = ((y1 - y0 - 1) // stride + 1, (x1 - x0 - 1) // stride + 1)
         inside = contour_to_mask((nodes - [x0, y0]) / stride, shape)
         reach = -(-INSET // stride)  # ceil: at least INSET pixels
+        # the grid points whose neighbourhood is all inside (erosion leaves the border alone)
+        core = cv2.erode(inside, np.ones((2 * reach + 1, 2 * reach + 1), np.uint8))
         frame = np.ascontiguousarray(levels)
-        points, colours = interior(inside, reach, (x0, y0), stride, frame)
+        points, colours = interior(np.asarray(core, np.uint8), 0, (x0, y0), stride, frame)
         if len(points) >= MIN_POINTS:
             self._points, self._colours = points, colours
 

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
 from engine.testing.synthetic import make_sequence
 from engine.tracking import Tracker
-from engine.tracking._lighting_kernel import LOG, SCALE, grid_sample, ratio_step
+from engine.tracking._lighting_kernel import LOG, SCALE, grid_sample, interior, ratio_step
 from engine.tracking.lighting import (
     ABSORBED,
     BRIGHT,
@@ -168,6 +168,22 @@ def track(
         nodes = tracker.step(frame).nodes
         ious.append(mask_iou(contour_to_mask(nodes, mask.shape), mask))
     return float(np.mean(ious[1:]))
+
+
+@pytest.mark.parametrize("reach", [1, 2, 3])
+def test_interior_points_are_those_the_erosion_keeps(reach: int) -> None:
+    """The learning erodes the grid mask first (OpenCV leaves the border alone, as the
+    kernel's own neighbourhood test counts beyond the edge as inside)."""
+    rng = np.random.default_rng(reach)
+    inside = (cv2.GaussianBlur(rng.random((40, 50)), (0, 0), 3) > 0.5).astype(np.uint8)
+    inside[:, :4] = 1  # inside up to the edge
+    image = rng.integers(0, 256, (200, 250, 3), dtype=np.uint8)
+    core = cv2.erode(inside, np.ones((2 * reach + 1, 2 * reach + 1), np.uint8))
+    expected = interior(inside, reach, (3, 5), 4, image)
+    got = interior(np.asarray(core, np.uint8), 0, (3, 5), 4, image)
+    assert len(expected[0]) > 20
+    for a, b in zip(got, expected, strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_the_tracker_keeps_an_object_through_a_change_of_light() -> None:
