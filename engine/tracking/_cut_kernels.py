@@ -95,6 +95,12 @@ def local_probability(
     num = np.zeros((h, w), dtype=np.float32)
     den = np.zeros((h, w), dtype=np.float32)
     spread = 2.0 * (0.6 * half) ** 2
+    # the Gaussian weight of each offset from a window's centre, once for all windows
+    side = 2 * half + 1
+    gauss = np.empty((side, side))
+    for dy in range(-half, half + 1):
+        for dx in range(-half, half + 1):
+            gauss[dy + half, dx + half] = math.exp(-(dx**2 + dy**2) / spread)
     for n in range(centres.shape[0]):
         nf = 0.0
         nbg = 0.0
@@ -115,7 +121,7 @@ def local_probability(
                 pb = (bg[n, c] + UNSEEN) / zb
                 seen = min((fg[n, c] + bg[n, c]) / trust, 1.0)
                 p = seen * pf / (pf + pb) + (1.0 - seen) * fallback[y, x]
-                weight = math.exp(-((x - cx) ** 2 + (y - cy) ** 2) / spread)
+                weight = gauss[y - cy + half, x - cx + half]
                 num[y, x] += weight * p
                 den[y, x] += weight
     out = fallback.copy()
