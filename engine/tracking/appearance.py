@@ -19,7 +19,7 @@ from engine.geometry import bounding_box, contour_to_mask
 from engine.tracking._state_codec import pack_histogram, unpack_histogram
 from engine.tracking.stages import check_kind
 
-__all__ = ["ColourHistogram", "Histograms", "bin_count", "quantise"]
+__all__ = ["ColourHistogram", "Histograms", "bin_count", "kernel_image", "quantise"]
 
 KIND = "colour-histogram"
 
