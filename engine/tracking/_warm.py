@@ -16,6 +16,7 @@ def warm_up() -> None:
     from engine.geometry import _kernels as geometry
     from engine.tracking import _cut_kernels as cut
     from engine.tracking import _image_kernels as image
+    from engine.tracking import _lighting_kernel as light
     from engine.tracking._refine_kernel import refine_chain
 
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -36,6 +37,10 @@ def warm_up() -> None:
         half = np.full((2, 2), 0.5, np.float32)
         cut.local_probability(picture, 5, 3, flags, centres, 1, fg, bg, 12.0, 1.0, half)
         cut.band_graph(half, 1.0, picture, half, np.ones(4))
+        colours = light.grid_sample(picture, 8)
+        light.interior(flags, 0, (0, 0), 1, picture)
+        light.carried(np.zeros((1, 2), np.int64), colours, np.zeros((2, 3)), picture)
+        light.ratio_step(colours, colours, light.LOG, 8, 247, 102)
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
     image.scale_odds(maps, maps)
