@@ -1,4 +1,4 @@
-"""Contour geometry: validation, resampling, areas, normals, masks and boxes.
+"""Contour geometry: validation, resampling, areas, normals, masks, boxes and similarity fits.
 
 All nodes are ``[x, y]`` pixels (x = column, y = row), as in OpenCV; a
 pixel's centre has integer coordinates.  Imports OpenCV (not loaded by
@@ -23,6 +23,7 @@ from engine.geometry.contours import (
     resample,
     self_intersects,
 )
+from engine.geometry.similarity import fit_similarity
 
 __all__ = [
     "Box",
@@ -32,6 +33,7 @@ __all__ = [
     "box_outline",
     "circle_nodes",
     "contour_to_mask",
+    "fit_similarity",
     "mask_iou",
     "mask_to_contour",
     "mask_to_contours",

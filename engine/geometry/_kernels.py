@@ -1,4 +1,5 @@
-"""Compiled contour geometry (numba): self-crossing, outward normals, nearest points.
+"""Compiled contour geometry (numba): self-crossing, normals, nearest points, resampling and the
+least-squares similarity.
 
 Imported lazily so that ``import engine.geometry`` does not start the
 compiler; numba caches the machine code on disk.
@@ -131,3 +132,43 @@ def resample_polyline(points: NDArray[np.float64], count: int, closed: bool) -> 
                     value = a[c]
             out[k, c] = value
     return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def least_squares_similarity(
+    src: NDArray[np.float64], dst: NDArray[np.float64], use: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], bool]:
+    """The 2 x 3 similarity ``[[a, -b, tx], [b, a, ty]]`` minimising the summed squared
+    distances from the moved ``src[use]`` to ``dst[use]``, in closed form (centred sums).
+    The flag is False (and the matrix zero) with fewer than two distinct points."""
+    out = np.zeros((2, 3))
+    n = 0
+    sx = sy = dx = dy = 0.0
+    for i in range(src.shape[0]):
+        if use[i]:
+            n += 1
+            sx += src[i, 0]
+            sy += src[i, 1]
+            dx += dst[i, 0]
+            dy += dst[i, 1]
+    if n < 2:
+        return out, False
+    sx /= n
+    sy /= n
+    dx /= n
+    dy /= n
+    spread = dot = cross = 0.0
+    for i in range(src.shape[0]):
+        if use[i]:
+            px, py = src[i, 0] - sx, src[i, 1] - sy
+            qx, qy = dst[i, 0] - dx, dst[i, 1] - dy
+            spread += px * px + py * py
+            dot += px * qx + py * qy
+            cross += px * qy - py * qx
+    if not spread > 0.0:
+        return out, False
+    a = dot / spread
+    b = cross / spread
+    out[0, 0], out[0, 1], out[0, 2] = a, -b, dx - (a * sx - b * sy)
+    out[1, 0], out[1, 1], out[1, 2] = b, a, dy - (b * sx + a * sy)
+    return out, True

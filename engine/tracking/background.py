@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
+from engine.geometry import contour_to_mask, fit_similarity
 
 __all__ = [
     "MEASURE",
@@ -149,12 +149,8 @@ def _fit(
     kept = found.ravel() == 1
     if np.count_nonzero(kept) < MIN_POINTS:
         return None
-    matrix, inliers = cv2.estimateAffinePartial2D(
-        start[kept],
-        end[kept],
-        method=cv2.RANSAC,
-        ransacReprojThreshold=RANSAC_THRESHOLD,
-        maxIters=RANSAC_ITERATIONS,
+    matrix, inliers = fit_similarity(
+        start[kept], end[kept], threshold=RANSAC_THRESHOLD, iterations=RANSAC_ITERATIONS
     )
     if matrix is None or int(np.count_nonzero(inliers)) < MIN_POINTS:
         return None

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import bounding_box, contour_to_mask
+from engine.geometry import bounding_box, contour_to_mask, fit_similarity
 from engine.tracking.background import MEASURE, Background, background_motion, in_region
 from engine.tracking.covering import covered_share, hidden_at
 
@@ -369,12 +369,8 @@ def estimate_motion(
         moving = _not_with(background, src, dst)
         if moving is not None:
             src, dst, corner_good = src[moving], dst[moving], corner_good[moving]
-    matrix, inliers = cv2.estimateAffinePartial2D(
-        src,
-        dst,
-        method=cv2.RANSAC,
-        ransacReprojThreshold=ransac_threshold,
-        maxIters=RANSAC_ITERATIONS,
+    matrix, inliers = fit_similarity(
+        src, dst, threshold=ransac_threshold, iterations=RANSAC_ITERATIONS
     )
     if matrix is None or not np.isfinite(matrix).all():
         shift = np.median(dst - src, axis=0)
@@ -384,7 +380,7 @@ def estimate_motion(
     else:
         # the share of the object's points (those not moving with the background) that agree
         support = float(inliers.sum()) / (len(pts) - (int(good.sum()) - len(src)))
-        agreed = (np.asarray(inliers).ravel() != 0) & corner_good
+        agreed = inliers & corner_good
         tracked = (dst[agreed] + origin).astype(np.float32)
     fitted: NDArray[np.float64] = np.asarray(matrix, dtype=np.float64)
     if hidden_share > 0:  # a part cannot tell the whole's growth from its own shift

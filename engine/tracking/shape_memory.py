@@ -21,11 +21,10 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import nearest, outward_normals, resample
+from engine.geometry import fit_similarity, nearest, outward_normals, resample
 from engine.physics import deform
 
 __all__ = ["DENSITY", "FREE_BELOW", "MIN_FREE", "SPREAD", "follow", "rest_on"]
@@ -83,7 +82,7 @@ def follow(
         return moved
     dense = resample(moved, DENSITY * len(moved))
     targets = nodes[free]
-    fit, _ = cv2.estimateAffinePartial2D(dense[nearest(targets, dense)], targets, method=cv2.LMEDS)
+    fit, _ = fit_similarity(dense[nearest(targets, dense)], targets, method="lmeds")
     if fit is None:
         return moved
     aligned: NDArray[np.float64] = moved @ fit[:, :2].T + fit[:, 2]
