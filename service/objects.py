@@ -23,7 +23,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import box_outline, circle_nodes, contour_to_mask, mask_to_contours
+from engine.geometry import (
+    MIN_PIECE_AREA,
+    box_outline,
+    circle_nodes,
+    contour_to_mask,
+    mask_to_contours,
+)
 from engine.tracking import ObjectsTracker, pack_image, unpack_image
 from engine.tracking.snap import snap
 from service.domain_errors import InvalidInputError, ObjectNotFoundError
@@ -32,9 +38,8 @@ from service.schemas import BOX_NODES, MAX_OBJECTS, Circle, ObjectSpec
 __all__ = ["SessionObjects", "first_contour", "outline_nodes"]
 
 MASK_NODES = 128
-"""Nodes of an object given as a mask, shared by its pieces."""
-MIN_PIECE_AREA = 100.0
-"""Pixels a separate piece of a mask needs to be tracked (as ``efdm track``'s default)."""
+"""Nodes of an object given as a mask (of its largest piece; the others at the same
+spacing, :func:`engine.geometry.mask_to_contours`)."""
 PNG_MAGIC = b"\x89PNG"
 KEPT_FRAME_QUALITY = 90
 """JPEG quality of the first frame kept for the second snap in a compact record (the shared

@@ -6,6 +6,7 @@ pixel's centre has integer coordinates.  Imports OpenCV (not loaded by
 """
 
 from engine.geometry.contours import (
+    MIN_PIECE_AREA,
     Box,
     Nodes,
     as_nodes,
@@ -26,6 +27,7 @@ from engine.geometry.contours import (
 from engine.geometry.similarity import fit_similarity
 
 __all__ = [
+    "MIN_PIECE_AREA",
     "Box",
     "Nodes",
     "as_nodes",

@@ -6,11 +6,14 @@ pixel's centre has integer coordinates.
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "MIN_PIECE_AREA",
     "Box",
     "as_nodes",
     "bounding_box",
@@ -259,34 +262,56 @@ def mask_to_contour(mask: ArrayLike, count: int) -> Nodes:
     m = np.asarray(mask)
     if m.ndim != 2:
         raise ValueError(f"mask must be two-dimensional; got shape {m.shape}")
-    binary = (m > 0).astype(np.uint8)
-    found, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    if not found:
-        raise ValueError("mask has no object pixels")
-    largest = max(found, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
+    largest = max(_outer_contours(m), key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
     if len(largest) < 3:
         raise ValueError("mask's object is too small for a contour")
     return resample(largest, count, closed=True)
 
 
+def _outer_contours(mask: NDArray[Any]) -> list[NDArray[np.int32]]:
+    """OpenCV's outer contours of the non-zero pixels; ValueError if there are none."""
+    binary = (np.asarray(mask) > 0).astype(np.uint8)
+    found, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not found:
+        raise ValueError("mask has no object pixels")
+    return [np.asarray(c, dtype=np.int32) for c in found]
+
+
+def _pixels(outline: Nodes) -> float:
+    """Pixels of a piece from its outline through the boundary pixels' centres: the
+    enclosed area plus half the length plus one (Pick's theorem)."""
+    return abs(polygon_area(outline)) + perimeter(outline) / 2 + 1
+
+
 MIN_PIECE_NODES = 16
 """Fewest nodes of a piece of :func:`mask_to_contours`: enough for the chain to hold
 a small blob's shape."""
+MIN_PIECE_AREA = 100.0
+"""Pixels a separate piece of a mask needs to be worth a contour of its own (a 10 x 10
+patch): smaller specks are mask noise more often than parts of the object.  The default
+of ``efdm track --min-piece-area`` and of the service's masks."""
 
 
 def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> list[Nodes]:
     """Every separate piece of a binary mask as a contour, largest first.
+
+    The largest piece gets ``count`` nodes: its contour is the one
+    :func:`mask_to_contour` gives, so a mask in pieces holds its main piece
+    exactly as a mask in one piece does.  Every other piece gets nodes at the
+    same spacing (``count`` times its perimeter over the largest's), at least
+    :data:`MIN_PIECE_NODES` (and at least 3): a piece added never takes nodes
+    from another (sharing ``count`` by perimeter cost the main piece its detail:
+    ``docs/tracking-log.md``, "A first mask in pieces").
 
     Parameters
     ----------
     mask : array_like
         H x W, non-zero = object.
     count : int
-        Nodes in all, shared by the pieces in proportion to their perimeters,
-        each piece at least :data:`MIN_PIECE_NODES` (and at least 3); the total
-        can then exceed ``count``.
+        Nodes of the largest piece (>= 3).
     min_area : float
-        Pieces of fewer pixels are left out (the largest piece never is).
+        Pieces of fewer pixels are left out (the largest piece never is);
+        :data:`MIN_PIECE_AREA` is the tracking default.
 
     Raises
     ------
@@ -298,22 +323,20 @@ def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> l
         raise ValueError(f"mask must be two-dimensional; got shape {m.shape}")
     if count < 3:
         raise ValueError(f"count must be at least 3; got {count}")
-    binary = (m > 0).astype(np.uint8)
-    found, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    outlines = [c.reshape(-1, 2).astype(np.float64) for c in found if len(c) >= 3]
-    if not outlines:
-        raise ValueError("mask has no object pixels")
-    # pixels of a piece: its outline's area plus half its length plus one (Pick's theorem)
-    areas = [abs(polygon_area(c)) + perimeter(c) / 2 + 1 for c in outlines]
-    order = np.argsort(areas)[::-1]
-    kept = [outlines[i] for k, i in enumerate(order) if k == 0 or areas[i] >= min_area]
-    lengths = np.array([max(perimeter(c), 1.0) for c in kept])
-    shares = lengths / lengths.sum()
-    floor = min(MIN_PIECE_NODES, count)
-    return [
-        resample(c, max(floor, 3, round(count * share)), closed=True)
-        for c, share in zip(kept, shares, strict=True)
-    ]
+    found = _outer_contours(m)
+    largest = max(range(len(found)), key=lambda i: cv2.contourArea(found[i]))
+    if len(found[largest]) < 3:
+        raise ValueError("mask's object is too small for a contour")
+    outlines = [c.reshape(-1, 2).astype(np.float64) for c in found]
+    spacing = max(perimeter(outlines[largest]), 1.0) / count
+    floor = max(min(MIN_PIECE_NODES, count), 3)
+    pieces = [resample(outlines[largest], count, closed=True)]
+    others = [c for i, c in enumerate(outlines) if i != largest and len(c) >= 3]
+    for outline in sorted(others, key=lambda c: -_pixels(c)):
+        if _pixels(outline) >= min_area:
+            share = round(max(perimeter(outline), 1.0) / spacing)
+            pieces.append(resample(outline, max(floor, share), closed=True))
+    return pieces
 
 
 def mask_iou(a: ArrayLike, b: ArrayLike) -> float:
