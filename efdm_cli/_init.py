@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from efdm_cli._common import EXIT_INVALID, CliError
+from engine.geometry import MIN_PIECE_AREA  # re-exported: the CLI's default
 
 __all__ = [
     "MIN_PIECE_AREA",
@@ -21,9 +22,6 @@ __all__ = [
 ]
 
 Nodes = NDArray[np.float64]
-MIN_PIECE_AREA = 100.0
-"""Pixels a separate piece of an ``--init-mask`` object needs to be tracked (a 10 x 10
-patch): smaller specks are mask noise more often than parts of the object."""
 _INIT_OPTIONS = ("--init-mask", "--init-box", "--init-polygon", "--init-circle")
 
 
@@ -126,7 +124,7 @@ def initial_objects(
         if any(getattr(args, o[2:].replace("-", "_")) is not None for o in _INIT_OPTIONS[2:]):
             raise CliError("--init-box cannot be combined with another --init-*", EXIT_INVALID)
         return {
-            k: [initial_contour(argparse.Namespace(**{**vars(args), "init_box": box}), *frames)]
+            k: initial_contours(argparse.Namespace(**{**vars(args), "init_box": box}), *frames)
             for k, box in enumerate(boxes, start=1)
         }
     one = argparse.Namespace(**{**vars(args), "init_box": boxes[0] if boxes else None})
@@ -161,14 +159,17 @@ def initial_contours(
     first: NDArray[np.uint8] | None = None,
     following: NDArray[np.uint8] | None = None,
 ) -> list[Nodes]:
-    """The initial contour of each piece of the object: several only for a mask in
-    separate pieces of at least ``--min-piece-area`` pixels (see :func:`initial_contour`)."""
+    """The initial contour of each piece of the object: several only for a mask, or a
+    snapped outline, in separate pieces of at least ``--min-piece-area`` pixels (see
+    :func:`initial_contour`; the largest piece has ``--nodes`` nodes, the others the same
+    spacing, :func:`engine.geometry.mask_to_contours`)."""
     from engine.geometry import mask_to_contours
 
-    nodes = initial_contour(args, size, first, following)
-    if args.init_mask is None:
+    nodes, mask = _initial(args, size, first, following)
+    if mask is None and args.init_mask is not None:
+        mask = _read_mask(args.init_mask, getattr(args, "label", None))  # read before: valid
+    if mask is None:
         return [nodes]
-    mask = _read_mask(args.init_mask, getattr(args, "label", None))  # read before: valid
     area = getattr(args, "min_piece_area", None)
     pieces = mask_to_contours(mask, args.nodes, min_area=MIN_PIECE_AREA if area is None else area)
     return pieces if len(pieces) > 1 else [nodes]
@@ -180,7 +181,8 @@ def initial_contour(
     first: NDArray[np.uint8] | None = None,
     following: NDArray[np.uint8] | None = None,
 ) -> Nodes:
-    """The ``--nodes`` initial nodes from exactly one ``--init-*`` option.
+    """The ``--nodes`` initial nodes from exactly one ``--init-*`` option (of the largest
+    piece, for an object in pieces: :func:`initial_contours` gives them all).
 
     A box (``--init-box``, unless ``--no-snap``) or a polygon or circle with
     ``--snap`` is snapped onto the object inside it in the ``first`` frame
@@ -204,6 +206,16 @@ def initial_contour(
         Invalid options, an unreadable or empty mask, or a contour entirely
         outside the frame.
     """
+    return _initial(args, size, first, following)[0]
+
+
+def _initial(
+    args: argparse.Namespace,
+    size: tuple[int, int],
+    first: NDArray[np.uint8] | None,
+    following: NDArray[np.uint8] | None,
+) -> tuple[Nodes, NDArray[np.bool_] | None]:
+    """:func:`initial_contour`'s nodes, and the snapped mask when the outline was snapped."""
     from engine.geometry import (
         box_outline,
         circle_nodes,
@@ -258,7 +270,8 @@ def initial_contour(
 
         outline = parse_box(box) if box is not None else nodes
         try:
-            nodes = mask_to_contour(snap(first, outline, next_frame=following), args.nodes)
+            snapped = np.asarray(snap(first, outline, next_frame=following), dtype=bool)
+            return mask_to_contour(snapped, args.nodes), snapped
         except ValueError as exc:
             raise CliError(f"snap: {exc}", EXIT_INVALID) from None
-    return nodes
+    return nodes, None

@@ -399,3 +399,32 @@ def test_a_mask_in_several_pieces_tracks_each_and_warns_of_specks_left_out(
     assert main([*argv, "--min-piece-area", "1000", "-o", str(out)]) == 0
     assert "2 under --min-piece-area 1000 px" in capsys.readouterr().err
     assert "nodes" in json.loads(out.read_text().splitlines()[0])  # one piece: as before
+
+
+def test_a_box_snapped_onto_an_object_in_pieces_tracks_every_piece(tmp_path: Path) -> None:
+    """Two dark discs in one box: the snap finds both, and both are tracked (as a mask in
+    pieces is); with ``--min-piece-area`` above the smaller, only the larger."""
+    from engine.geometry import contour_to_mask, mask_iou
+
+    truth = np.zeros((H, W), np.uint8)
+    cv2.circle(truth, (50, 60), R, 255, -1)
+    cv2.circle(truth, (108, 60), R - 6, 255, -1)
+    for i in range(3):
+        frame = np.clip(200 + np.random.default_rng(i).normal(0, 4, (H, W, 3)), 0, 255)
+        frame[truth > 0] = (40, 50, 60)
+        assert cv2.imwrite(str(tmp_path / f"f{i}.png"), frame.astype(np.uint8))
+    out = tmp_path / "t.jsonl"
+    argv = ["track", str(tmp_path / "f*.png"), "--init-box", "26,36,127,85", "-o", str(out), "-q"]
+    assert main(argv) == 0
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(records) == 3
+    assert all("nodes" not in r for r in records)
+    pieces = records[0]["contours"]
+    assert len(pieces) == 2
+    assert len(pieces[0]) == 128  # the larger disc keeps --nodes, the smaller its spacing
+    found = np.zeros((H, W), np.uint8)
+    for piece in pieces:
+        found |= contour_to_mask(np.array(piece), (H, W))
+    assert mask_iou(found, truth) > 0.85
+    assert main([*argv, "--min-piece-area", "1000"]) == 0
+    assert len(read_records(out.read_text())[0]["nodes"]) == 128
