@@ -142,7 +142,7 @@ def put_lines(
 
 
 def draw_tile(clip: Clip, result: ClipResult, index: int) -> Frame:
-    """One frame, downscaled, with the ground truth and every tracker's contour."""
+    """One frame, downscaled, with the ground truth and every tracker's contours."""
     height, width = clip.shape
     scale = TILE_WIDTH / width
     size = (TILE_WIDTH, round(height * scale))
@@ -157,7 +157,9 @@ def draw_tile(clip: Clip, result: ClipResult, index: int) -> Frame:
     for tracker, colour in SHEET_COLOURS.items():
         run = result.runs.get(tracker)
         if run is not None and index < len(run.nodes):
-            draw_polyline(tile, run.nodes[index] * scale, colour, 2 if tracker == "efdm" else 1)
+            others = run.others[index] if index < len(run.others) else ()
+            for nodes in (run.nodes[index], *others):
+                draw_polyline(tile, nodes * scale, colour, 2 if tracker == "efdm" else 1)
             lines.append((f"{tracker} J {run.iou[index]:.2f}", LABEL_COLOURS[tracker]))
     put_lines(tile, lines, (0, 0))
     return tile

@@ -1,12 +1,14 @@
 """Running the trackers over clips: per-frame J, status and timings.
 
 Protocol (DAVIS-2016, semi-supervised): the first frame's mask gives the
-initial contour (its largest outer contour resampled to :data:`NODES`
-nodes); the tracker then sees only frames.  J of a frame is the IoU of the
-filled tracked contour with the ground-truth mask; a clip's score is the mean
-over frames 1..T-2, less the frames where the object is hidden (scored by the
-tracker's status instead) and the first few after it reappears
-(:mod:`bench.tracking.metrics`).  Only the ``step`` calls are timed; each
+initial contours, as ``efdm track --init-mask`` takes them: its largest outer
+contour resampled to :data:`NODES` nodes, and every other separate piece of at
+least :data:`engine.geometry.MIN_PIECE_AREA` pixels at the same node spacing
+(:func:`engine.geometry.mask_to_contours`); the tracker then sees only frames.
+J of a frame is the IoU of the filled tracked contours with the ground-truth
+mask; a clip's score is the mean over frames 1..T-2, less the frames where the
+object is hidden (scored by the tracker's status instead) and the first few
+after it reappears (:mod:`bench.tracking.metrics`).  Only the ``step`` calls are timed; each
 tracker tracks a whole clip uninterrupted, the trackers one after the other in
 an order that alternates from clip to clip.
 """
@@ -20,6 +22,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from bench.common.data import Clip
 from bench.common.log import log
@@ -35,7 +38,7 @@ from bench.tracking.metrics import (
     share,
 )
 from bench.tracking.trackers import ContourTracker, Factory, Nodes
-from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
+from engine.geometry import MIN_PIECE_AREA, contour_to_mask, mask_iou, mask_to_contours
 
 
 @dataclass(slots=True)
@@ -55,7 +58,11 @@ class TrackRun:
     ms : list of float
         Milliseconds of every ``step`` call, frame 0 (initialisation) included.
     nodes : list of numpy.ndarray
-        The contour of every tracked frame (kept for the contact sheets, not in the JSON).
+        The contour of every tracked frame (kept for the contact sheets, not in the JSON);
+        of the first piece for an object in several.
+    others : list of tuple of numpy.ndarray
+        The other pieces' contours of every tracked frame (empty tuples for an object in
+        one piece).
     extras : dict of str to list of float
         Per-frame diagnostics (efdm).
     status : list of str
@@ -72,6 +79,7 @@ class TrackRun:
     iou: list[float] = field(default_factory=list)
     ms: list[float] = field(default_factory=list)
     nodes: list[Nodes] = field(default_factory=list)
+    others: list[tuple[Nodes, ...]] = field(default_factory=list)
     extras: dict[str, list[float]] = field(default_factory=dict)
     status: list[str] = field(default_factory=list)
     error: str | None = None
@@ -149,9 +157,18 @@ class ClipResult:
     runs: dict[str, TrackRun]
 
 
-def initial_contour(clip: Clip, nodes: int = NODES) -> Nodes:
-    """The first mask's largest outer contour, resampled to ``nodes`` nodes."""
-    return mask_to_contour(clip.masks[0], nodes)
+def initial_contours(clip: Clip, nodes: int = NODES) -> list[Nodes]:
+    """The first mask's contours: its largest piece's resampled to ``nodes`` nodes, then
+    every other piece of at least :data:`~engine.geometry.MIN_PIECE_AREA` pixels."""
+    return mask_to_contours(clip.masks[0], nodes, min_area=MIN_PIECE_AREA)
+
+
+def filled(contours: Sequence[Nodes], shape: tuple[int, int]) -> NDArray[np.bool_]:
+    """The union of the filled contours, an H x W mask."""
+    union = np.zeros(shape, dtype=bool)
+    for nodes in contours:
+        union |= contour_to_mask(nodes, shape) > 0
+    return union
 
 
 def record_step(tracker: ContourTracker, run: TrackRun, clip: Clip, index: int) -> None:
@@ -160,9 +177,9 @@ def record_step(tracker: ContourTracker, run: TrackRun, clip: Clip, index: int) 
     start = time.perf_counter()
     step = tracker.step(frame)
     run.ms.append(1e3 * (time.perf_counter() - start))
-    filled = contour_to_mask(step.nodes, clip.shape)
-    run.iou.append(float(mask_iou(filled, clip.masks[index])))
+    run.iou.append(float(mask_iou(filled(step.contours, clip.shape), clip.masks[index])))
     run.nodes.append(step.nodes)
+    run.others.append(step.others)
     if step.status is not None:
         run.status.append(step.status)
     for key, value in step.extras.items():
@@ -193,7 +210,7 @@ def run_clip(
     of the machine's load fall on every tracker alike.  Exceptions raised by
     a tracker are recorded in :attr:`TrackRun.error` and end that tracker's
     run on this clip.  ``label`` ends the progress lines (e.g. the options);
-    ``nodes`` is the initial contour's node count.
+    ``nodes`` is the node count of the initial contour (of the largest piece).
     """
     total = len(clip.frames)
     runs = {
@@ -204,7 +221,7 @@ def run_clip(
     for name in names:
         run = runs[name]
         try:
-            tracker = factories[name](initial_contour(clip, nodes))
+            tracker = factories[name](initial_contours(clip, nodes))
         except Exception as exc:  # a crashing tracker is a result, not a reason to stop
             record_failure(run, clip, exc)
             continue
@@ -236,12 +253,19 @@ def same_tracks(first: Sequence[ClipResult], second: Sequence[ClipResult]) -> bo
         if a.runs.keys() != b.runs.keys():
             return False
         for name, run in a.runs.items():
-            other = b.runs[name].nodes
-            if len(run.nodes) != len(other):
+            mine, theirs = _contours(run), _contours(b.runs[name])
+            if [len(c) for c in mine] != [len(c) for c in theirs]:
                 return False
-            if not all(np.array_equal(x, y) for x, y in zip(run.nodes, other, strict=True)):
-                return False
+            for x, y in zip(mine, theirs, strict=True):
+                if not all(np.array_equal(p, q) for p, q in zip(x, y, strict=True)):
+                    return False
     return True
+
+
+def _contours(run: TrackRun) -> list[list[Nodes]]:
+    """Every piece's contour of every tracked frame."""
+    others = run.others or [()] * len(run.nodes)
+    return [[nodes, *rest] for nodes, rest in zip(run.nodes, others, strict=True)]
 
 
 def mean_j(results: Sequence[ClipResult], tracker: str) -> float:
