@@ -299,8 +299,9 @@ def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> l
     :func:`mask_to_contour` gives, so a mask in pieces holds its main piece
     exactly as a mask in one piece does.  Every other piece gets nodes at the
     same spacing (``count`` times its perimeter over the largest's), at least
-    :data:`MIN_PIECE_NODES` (and at least 3): a piece added never takes nodes
-    from another (sharing ``count`` by perimeter cost the main piece its detail:
+    :data:`MIN_PIECE_NODES` (and at least 3) and at most ``count`` (a thin,
+    winding piece is no more detailed than the main one): a piece added never
+    takes nodes from another (sharing ``count`` by perimeter cost the main piece its detail:
     ``docs/tracking-log.md``, "A first mask in pieces").
 
     Parameters
@@ -335,7 +336,7 @@ def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> l
     for outline in sorted(others, key=lambda c: -_pixels(c)):
         if _pixels(outline) >= min_area:
             share = round(max(perimeter(outline), 1.0) / spacing)
-            pieces.append(resample(outline, max(floor, share), closed=True))
+            pieces.append(resample(outline, min(max(floor, share), count), closed=True))
     return pieces
 
 

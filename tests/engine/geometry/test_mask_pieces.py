@@ -58,8 +58,8 @@ def test_the_other_pieces_get_the_largest_ones_node_spacing(
     for piece in pieces[1:]:
         # resampling keeps the outline's length up to the corners it cuts
         wanted = perimeter(piece) / spacing
-        assert len(piece) >= max(min(MIN_PIECE_NODES, count), round(0.9 * wanted) - 1)
-        assert len(piece) <= max(MIN_PIECE_NODES, round(1.1 * wanted) + 1)
+        assert len(piece) >= min(max(MIN_PIECE_NODES, round(0.9 * wanted) - 1), count)
+        assert len(piece) <= min(max(MIN_PIECE_NODES, round(1.1 * wanted) + 1), count)
 
 
 def test_a_piece_added_takes_no_node_from_the_others() -> None:
@@ -71,6 +71,16 @@ def test_a_piece_added_takes_no_node_from_the_others() -> None:
     assert MIN_PIECE_NODES <= len(together[1]) < len(together[0])
     # the same spacing: about 100 * 10 / 16 nodes for the smaller disc
     assert abs(len(together[1]) - 100 * 10 / 16) <= 4
+
+
+def test_a_winding_piece_gets_no_more_nodes_than_the_largest() -> None:
+    mask = drawn([(40.0, 60.0, 12.0)])  # a disc of about 450 px, 75 px round
+    mask[5:7, 5:155] = 255  # a 2 x 150 strip: 300 px, 300 px round
+    mask[9:11, 5:155] = 255
+    pieces = mask_to_contours(mask, 40)
+    assert len(pieces) == 3
+    assert len(pieces[0]) == 40
+    assert all(len(p) == 40 for p in pieces[1:])  # four times the spacing's share, capped
 
 
 def test_pieces_come_largest_first_and_small_ones_can_be_left_out() -> None:
