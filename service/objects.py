@@ -40,6 +40,9 @@ __all__ = ["SessionObjects", "first_contour", "outline_nodes"]
 MASK_NODES = 128
 """Nodes of an object given as a mask (of its largest piece; the others at the same
 spacing, :func:`engine.geometry.mask_to_contours`)."""
+MAX_PIECES = MAX_OBJECTS
+"""Separate pieces of one object at most: each is a tracker of its own, as costly a frame
+as an object (a mask of more answers 422; a snap keeps its largest)."""
 PNG_MAGIC = b"\x89PNG"
 KEPT_FRAME_QUALITY = 90
 """JPEG quality of the first frame kept for the second snap in a compact record (the shared
@@ -84,6 +87,12 @@ def first_contour(shape: dict[str, Any]) -> NDArray[np.float64]:
     return np.asarray(shape.get("nodes") or shape["contours"][0], dtype=np.float64)
 
 
+def _snapped(mask: NDArray[np.uint8]) -> Contours:
+    """A snap's contours: its :data:`MAX_PIECES` largest pieces of at least
+    :data:`~engine.geometry.MIN_PIECE_AREA` pixels."""
+    return mask_to_contours(mask, BOX_NODES, min_area=MIN_PIECE_AREA)[:MAX_PIECES]
+
+
 def outline(spec: ObjectSpec, max_nodes: int) -> tuple[Contours, dict[str, Any]]:
     """An object's contours and what waits for the next frame (``snap`` or ``size``)."""
     if spec.mask is None:
@@ -96,6 +105,11 @@ def outline(spec: ObjectSpec, max_nodes: int) -> tuple[Contours, dict[str, Any]]
             contours = mask_to_contours(mask, MASK_NODES, min_area=MIN_PIECE_AREA)
         except ValueError as exc:
             raise InvalidInputError(f"mask: {exc}") from None
+        if len(contours) > MAX_PIECES:
+            raise InvalidInputError(
+                f"mask: {len(contours)} separate pieces of at least {MIN_PIECE_AREA:g} px; "
+                f"at most {MAX_PIECES}"
+            )
         return contours, {"size": [int(mask.shape[1]), int(mask.shape[0])]}
     waiting: dict[str, Any] = {"check": True}
     if spec.snaps:
@@ -192,8 +206,7 @@ class SessionObjects:
                 )
             if "snap" in waiting:
                 try:
-                    found = snap(frame, waiting["snap"])
-                    settled[key] = mask_to_contours(found, BOX_NODES, min_area=MIN_PIECE_AREA)
+                    settled[key] = _snapped(snap(frame, waiting["snap"]))
                 except ValueError as exc:
                     raise InvalidInputError(f"object {key!r}: snap: {exc}") from None
             elif waiting.get("check"):
@@ -218,8 +231,7 @@ class SessionObjects:
             return
         for key, outline in again.items():
             try:
-                found = snap(first, outline, next_frame=frame)
-                contours = mask_to_contours(found, BOX_NODES, min_area=MIN_PIECE_AREA)
+                contours = _snapped(snap(first, outline, next_frame=frame))
                 self.tracker.restart(key, contours, first)
             except ValueError:
                 continue  # nothing readable with the first frame: its colour snap stands

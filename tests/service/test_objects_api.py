@@ -33,6 +33,15 @@ def iou(nodes: list[list[float]], centre: tuple[float, float]) -> float:
     return mask_iou(contour_to_mask(np.asarray(nodes), SIZE), disc(centre))
 
 
+def specks(count: int) -> np.ndarray:
+    """A mask of ``count`` separate 12 x 12 squares."""
+    mask = np.zeros(SIZE, np.uint8)
+    for k in range(count):
+        y, x = divmod(k, 12)
+        mask[5 + 20 * y : 17 + 20 * y, 5 + 20 * x : 17 + 20 * x] = 255
+    return mask
+
+
 def png(mask: np.ndarray) -> str:
     ok, data = cv2.imencode(".png", mask)
     assert ok
@@ -97,6 +106,8 @@ def test_an_object_in_two_pieces_answers_its_contours(client: TestClient) -> Non
     sid = client.post("/v1/sessions", json={"objects": [{"mask": png(mask)}]}).json()["id"]
     result = frame(client, sid, (160.0, 120.0)).json()
     assert len(result["objects"][0]["contours"]) == 2
+    at_most = client.post("/v1/sessions", json={"objects": [{"mask": png(specks(32))}]})
+    assert at_most.status_code == 201, at_most.text
 
 
 @pytest.mark.parametrize(
@@ -108,6 +119,7 @@ def test_an_object_in_two_pieces_answers_its_contours(client: TestClient) -> Non
             "not a PNG",
         ),
         ({"objects": [{"mask": "%%%"}]}, "base64"),
+        ({"objects": [{"mask": png(specks(33))}]}, "33 separate pieces of at least 100 px"),
         ({"objects": [{"circle": {"center": [1, 1], "radius": 2}}] * 33}, ""),
         ({"objects": [{"id": "a", "box": BOX}, {"id": "a", "box": BOX}]}, "differ"),
         ({"objects": []}, "at least one"),
