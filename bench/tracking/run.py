@@ -8,9 +8,9 @@ least :data:`engine.geometry.MIN_PIECE_AREA` pixels at the same node spacing
 J of a frame is the IoU of the filled tracked contours with the ground-truth
 mask; a clip's score is the mean over frames 1..T-2, less the frames where the
 object is hidden (scored by the tracker's status instead) and the first few
-after it reappears (:mod:`bench.tracking.metrics`).  Only the ``step`` calls are timed; each
-tracker tracks a whole clip uninterrupted, the trackers one after the other in
-an order that alternates from clip to clip.
+after it reappears (:mod:`bench.tracking.metrics`).  Only the ``step`` calls
+are timed; each tracker tracks a whole clip uninterrupted, the trackers one
+after the other in an order that alternates from clip to clip.
 """
 
 from __future__ import annotations

@@ -301,8 +301,8 @@ def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> l
     same spacing (``count`` times its perimeter over the largest's), at least
     :data:`MIN_PIECE_NODES` (and at least 3) and at most ``count`` (a thin,
     winding piece is no more detailed than the main one): a piece added never
-    takes nodes from another (sharing ``count`` by perimeter cost the main piece its detail:
-    ``docs/tracking-log.md``, "A first mask in pieces").
+    takes nodes from another.  (Sharing ``count`` by perimeter cost the main
+    piece its detail: ``docs/tracking-log.md``, "A first mask in pieces".)
 
     Parameters
     ----------
