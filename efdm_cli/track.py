@@ -297,9 +297,9 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--min-piece-area",
         type=float,
         metavar="PX",
-        help="with --init-mask: an object in several separate pieces is tracked piece by "
-        f"piece (JSON 'contours'), pieces under PX pixels left out with a warning "
-        f"(default {MIN_PIECE_AREA:g})",
+        help="with --init-mask or a snapped outline: an object in several separate pieces "
+        "is tracked piece by piece (JSON 'contours'), pieces under PX pixels left out (with "
+        f"a warning for a mask; default {MIN_PIECE_AREA:g})",
     )
     init.add_argument(
         "--label",
