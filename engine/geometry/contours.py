@@ -332,9 +332,9 @@ def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> l
     spacing = max(perimeter(outlines[largest]), 1.0) / count
     floor = max(min(MIN_PIECE_NODES, count), 3)
     pieces = [resample(outlines[largest], count, closed=True)]
-    others = [c for i, c in enumerate(outlines) if i != largest and len(c) >= 3]
-    for outline in sorted(others, key=lambda c: -_pixels(c)):
-        if _pixels(outline) >= min_area:
+    sized = [(_pixels(c), c) for i, c in enumerate(outlines) if i != largest and len(c) >= 3]
+    for pixels, outline in sorted(sized, key=lambda piece: -piece[0]):
+        if pixels >= min_area:
             share = round(max(perimeter(outline), 1.0) / spacing)
             pieces.append(resample(outline, min(max(floor, share), count), closed=True))
     return pieces
