@@ -44,6 +44,7 @@ from engine.tracking.appearance import ColourHistogram
 from engine.tracking.background import MEASURE, Background
 from engine.tracking.confidence import (
     TRACKING_FROM,
+    Evidence,
     calibrated,
     evidence,
     search_score,
@@ -122,11 +123,12 @@ on the synthetic conditions, 0.6887 on the thirty."""
 
 @dataclass(frozen=True, slots=True)
 class _Attempt:
-    """One way of tracking the frame: the refinement, the final contour, its confidence
-    (reported) and its score (the search's decisions)."""
+    """One way of tracking the frame: the refinement, the final contour, the evidence
+    about it, its confidence (reported) and its score (the search's decisions)."""
 
     refinement: Refinement
     nodes: NDArray[np.float64]
+    evidence: Evidence
     confidence: float
     score: float
 
@@ -206,6 +208,7 @@ class Tracker:
         self.frame_index = -1
         self._memory = Memory.fresh(self._nodes)
         self._lighting = Lighting()
+        self._evidence: Evidence | None = None
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -224,6 +227,20 @@ class Tracker:
     def previous_frame(self) -> NDArray[np.uint8] | None:
         """The grey frame the contour is on (None before the first frame)."""
         return self._previous
+
+    @property
+    def evidence(self) -> Evidence | None:
+        """What the last frame said about its contour (None after a first frame, or when
+        there was nothing to track): the input of the confidence model.
+
+        The last result's confidence is
+        :func:`engine.tracking.confidence.calibrated` of it, except when the contour lies
+        wholly outside the frame (0) and in the frames of probation after a re-acquisition
+        (at most just below :data:`engine.tracking.confidence.TRACKING_FROM`).  For analysis: the
+        benchmark cross-validates the confidence model on it
+        (``python -m bench.tracking.confidence``).  Not part of :meth:`to_state`.
+        """
+        return self._evidence
 
     @property
     def started(self) -> bool:
@@ -313,6 +330,7 @@ class Tracker:
         crowd: Crowd,
     ) -> TrackResult:
         self.frame_index += 1
+        self._evidence = None
         if min(grey.shape) < MIN_SIDE:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
@@ -355,6 +373,7 @@ class Tracker:
                     self.motion.reset()
                     memory.probation = PROBATION + 1
         refinement, nodes, confidence = attempt.refinement, attempt.nodes, attempt.confidence
+        self._evidence = attempt.evidence
         memory.hold = carry(hold, refinement.nodes, nodes)
         if memory.probation > 0:
             memory.probation -= 1
@@ -428,7 +447,7 @@ class Tracker:
         if cut is not None and valid_contour(cut, grey.shape, self._nodes):
             nodes = cut
         found = evidence(maps, nodes, refinement.converged)
-        return _Attempt(refinement, nodes, calibrated(found), search_score(found))
+        return _Attempt(refinement, nodes, found, calibrated(found), search_score(found))
 
     def _search(
         self, image: NDArray[np.uint8], grey: NDArray[np.uint8], prediction: Prediction

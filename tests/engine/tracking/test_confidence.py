@@ -108,3 +108,19 @@ def test_a_followed_object_is_tracking_and_a_vanished_one_is_not(frames: list[U8
     empty = DiscScene(W, H, R, seed=11).frame((-10 * R, -10 * R))
     after = run(tracker, [empty] * 3)
     assert all(r.status != "tracking" for r in after), [r.confidence for r in after]
+
+
+def test_the_tracker_shows_the_evidence_behind_its_confidence(frames: list[U8]) -> None:
+    tracker = Tracker(initial())
+    assert tracker.evidence is None
+    tracker.step(frames[0])
+    assert tracker.evidence is None  # a first frame is taken as given, not judged
+    for frame in frames[1:6]:
+        result = tracker.step(frame)
+        assert tracker.evidence is not None
+        assert result.confidence == calibrated(tracker.evidence)
+    last = tracker.evidence
+    assert last is not None and last.inside > 0.8 > 0.2 > last.outside
+    assert Tracker.from_state(tracker.to_state()).evidence is None  # not a state
+    tracker.step(np.zeros((2, 2, 3), np.uint8))  # nothing to track in so small a frame
+    assert tracker.evidence is None
