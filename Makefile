@@ -60,8 +60,10 @@ bench-seeds: $(STAMP)
 bench-service: $(STAMP)
 	$(BIN)/python -m bench.serving
 
-## bench-studies: Redis state size and resume quality, snapping boxes, several objects (DAVIS, crowd)
+## bench-studies: the confidence model held out, Redis state size and resume quality, snapping
+## boxes, several objects (DAVIS, crowd)
 bench-studies: $(STAMP)
+	$(BIN)/python -m bench.tracking.confidence
 	$(BIN)/python -m bench.serving.state
 	$(BIN)/python -m bench.tracking.snap
 	$(BIN)/python -m bench.tracking.objects

@@ -1,0 +1,253 @@
+"""Lost detection on sequences the confidence model was not fitted on.
+
+``python -m bench.tracking.confidence [--quick] [--out DIR]`` tracks the thirty DAVIS-2016
+training sequences and the five validation ones with the default tracker, from every node
+count of the cross-validation (:data:`NODE_COUNTS`), keeps each scored frame's evidence
+(:attr:`engine.tracking.Tracker.evidence`) and IoU (frames 1..T-2, as the tracking
+benchmark), and writes ``confidence.md`` and ``confidence.json``:
+
+- **as shipped**: how the shipped model (:data:`engine.tracking.confidence.COEFFICIENTS`) and
+  threshold (:data:`~engine.tracking.confidence.TRACKING_FROM`) report the frames: in-sample
+  on the thirty, which they were fitted on; held out on the five;
+- **cross-validated**: on folds of the thirty, dealt as the tracking benchmark's
+  cross-validation deals them, the model is fitted anew on the other folds (cross-entropy to
+  the IoU, as the shipped one was), the threshold chosen there (:data:`KEEP_TRACKING` of their
+  frames with IoU >= 0.6 reported ``tracking``), and the fold's frames scored with both.
+
+The contours do not depend on the confidence model, so one tracking run serves every fold.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize
+
+from bench.common.data import davis_names
+from bench.common.study import on_two_processes, study_main
+from bench.tracking.cv import make_folds
+
+NODE_COUNTS = (112, 120, 128, 136, 144)
+"""The cross-validation's node counts: every frame of each counts once."""
+QUICK_SEQUENCES = 2
+"""Sequences per set with ``--quick`` (and 128 nodes only)."""
+FOLDS = 5
+"""Folds of the thirty, as the cross-validation's."""
+KEEP_TRACKING = 0.975
+"""Share of the fitting folds' frames with IoU >= 0.6 the chosen threshold reports
+``tracking`` (of those it decides: not the capped or unseen ones): the rule
+:data:`engine.tracking.confidence.TRACKING_FROM` was chosen by."""
+GOOD_FROM, BAD_BELOW = 0.6, 0.2
+"""The issue's overlaps: frames that should be ``tracking``, and frames that should not."""
+UNSEEN, CAPPED, PLAIN = 0, 1, 2
+"""How a frame's reported confidence relates to its evidence: 0 (the contour outside the
+frame), capped just below ``tracking`` (probation after a re-acquisition), or the model's."""
+
+
+def _sequence(job: tuple[str, str, str, int]) -> dict[str, Any]:
+    """Track one sequence; each scored frame's features, kind, confidence and IoU."""
+    label, name, root, nodes = job
+    import cv2
+
+    cv2.setNumThreads(1)
+    from bench.common.data import load_davis
+    from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
+    from engine.tracking import Tracker
+    from engine.tracking.confidence import calibrated
+
+    clip = load_davis(name, root=Path(root))
+    tracker = Tracker(mask_to_contour(clip.masks[0], nodes))
+    rows: list[list[float]] = []
+    last = len(clip.frames) - 1
+    for i, (frame, mask) in enumerate(zip(clip.frames, clip.masks, strict=True)):
+        result = tracker.step(frame)
+        e = tracker.evidence
+        if i in (0, last):
+            continue
+        iou = mask_iou(contour_to_mask(result.nodes, mask.shape), mask)
+        if e is None:
+            rows.append([0.0] * 6 + [UNSEEN, result.confidence, iou])
+            continue
+        kind = UNSEEN if result.confidence == 0.0 else PLAIN
+        if kind == PLAIN and result.confidence < calibrated(e):
+            kind = CAPPED
+        features = [e.inside, e.outside, e.settled, e.motion_inside, e.motion_outside]
+        rows.append([*map(float, features), float(e.motion_seen), kind, result.confidence, iou])
+    return {"set": label, "name": name, "nodes": nodes, "rows": rows}
+
+
+def fit_model(features: NDArray[np.float64], iou: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Bias and weights of the logistic model of ``iou`` (cross-entropy to it, as
+    :data:`engine.tracking.confidence.COEFFICIENTS` was fitted)."""
+    x = np.column_stack([np.ones(len(features)), features])
+
+    def loss(w: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+        p = np.clip(1.0 / (1.0 + np.exp(-(x @ w))), 1e-9, 1 - 1e-9)
+        value = -np.mean(iou * np.log(p) + (1 - iou) * np.log(1 - p))
+        return float(value), x.T @ (p - iou) / len(iou)
+
+    found = minimize(loss, np.zeros(x.shape[1]), jac=True, method="L-BFGS-B")
+    return np.asarray(found.x, np.float64)
+
+
+def reported(
+    w: NDArray[np.float64], features: NDArray[np.float64], kind: NDArray[np.int64], thr: float
+) -> NDArray[np.float64]:
+    """The confidences the model ``w`` with threshold ``thr`` reports, as the tracker does."""
+    c = 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
+    c = np.where(kind == CAPPED, np.minimum(c, thr - 1e-3), c)
+    return np.where(kind == UNSEEN, 0.0, c)
+
+
+def choose_threshold(
+    conf: NDArray[np.float64], kind: NDArray[np.int64], iou: NDArray[np.float64]
+) -> float:
+    """The confidence from which :data:`KEEP_TRACKING` of the good frames the threshold decides
+    report ``tracking`` (capped and unseen frames are decided otherwise; 0.5 without any)."""
+    free = conf[(iou >= GOOD_FROM) & (kind == PLAIN)]
+    if not len(free):
+        return 0.5
+    return float(np.quantile(free, 1.0 - KEEP_TRACKING))
+
+
+def detection(conf: NDArray[np.float64], iou: NDArray[np.float64], thr: float) -> dict[str, Any]:
+    """Lost detection at ``thr``: shares (%) and counts of bad and good frames, mean error."""
+    bad, good = iou < BAD_BELOW, iou >= GOOD_FROM
+    nb, ng = int(np.count_nonzero(bad)), int(np.count_nonzero(good))
+    return {
+        "bad_frames": nb,
+        "bad_reported": 100.0 * np.count_nonzero(conf[bad] < thr) / nb if nb else None,
+        "good_frames": ng,
+        "good_tracking": 100.0 * np.count_nonzero(conf[good] >= thr) / ng if ng else None,
+        "mean_error": float(np.mean(np.abs(conf - iou))) if len(iou) else None,
+    }
+
+
+def _arrays(
+    rows: list[list[float]],
+) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any], NDArray[Any]]:
+    a = np.asarray(rows, np.float64).reshape(-1, 9)
+    return a[:, :6], a[:, 6].astype(np.int64), a[:, 7], a[:, 8]
+
+
+def cross_validate(rows: dict[str, list[list[float]]], folds: int) -> dict[str, Any]:
+    """Fit on all folds but one, score that one; the pooled held-out figures and each fold's."""
+    held: list[tuple[NDArray[np.float64], NDArray[np.float64], float]] = []
+    per_fold = []
+    for fold in make_folds(list(rows), folds):
+        fit_rows = [r for name in rows if name not in fold for r in rows[name]]
+        test_rows = [r for name in fold for r in rows[name]]
+        features, kind, _, iou = _arrays(fit_rows)
+        fitted = kind != UNSEEN
+        w = fit_model(features[fitted], iou[fitted])
+        thr = choose_threshold(reported(w, features, kind, 1.0), kind, iou)
+        tf, tk, _, ti = _arrays(test_rows)
+        conf = reported(w, tf, tk, thr)
+        held.append((conf, ti, thr))
+        per_fold.append({"sequences": list(fold), "threshold": thr, **detection(conf, ti, thr)})
+    bad = sum(int(np.count_nonzero(c[i < BAD_BELOW] < t)) for c, i, t in held)
+    good = sum(int(np.count_nonzero(c[i >= GOOD_FROM] >= t)) for c, i, t in held)
+    nb = sum(int(np.count_nonzero(i < BAD_BELOW)) for _, i, _ in held)
+    ng = sum(int(np.count_nonzero(i >= GOOD_FROM)) for _, i, _ in held)
+    errors = np.concatenate([np.abs(c - i) for c, i, _ in held])
+    pooled = {
+        "bad_frames": nb,
+        "bad_reported": 100.0 * bad / nb if nb else None,
+        "good_frames": ng,
+        "good_tracking": 100.0 * good / ng if ng else None,
+        "mean_error": float(errors.mean()) if len(errors) else None,
+    }
+    return {"pooled": pooled, "folds": per_fold}
+
+
+def run(sets: dict[str, Path], quick: bool) -> dict[str, Any]:
+    """Track every sequence at every node count on two processes; score and cross-validate."""
+    from engine.tracking.confidence import COEFFICIENTS, TRACKING_FROM
+
+    counts = (128,) if quick else NODE_COUNTS
+    jobs = [
+        (label, name, str(root), n)
+        for label, root in sets.items()
+        for name in davis_names(root)[: QUICK_SEQUENCES if quick else None]
+        for n in counts
+    ]
+    done = on_two_processes(_sequence, jobs)
+    out: dict[str, Any] = {"node_counts": list(counts)}
+    for label in sets:
+        by_name: dict[str, list[list[float]]] = {}
+        for d in done:
+            if d["set"] == label:
+                by_name.setdefault(d["name"], []).extend(d["rows"])
+        _, _, conf, iou = _arrays([r for rows in by_name.values() for r in rows])
+        figures: dict[str, Any] = {
+            "sequences": len(by_name),
+            "frames": len(iou),
+            "shipped": detection(conf, iou, TRACKING_FROM),
+        }
+        if label == "davis-train":
+            figures["cross_validated"] = cross_validate(by_name, FOLDS)
+        out[label] = figures
+    out["shipped_model"] = {"coefficients": list(COEFFICIENTS), "tracking_from": TRACKING_FROM}
+    return out
+
+
+def _cells(d: dict[str, Any]) -> str:
+    def pct(v: float | None) -> str:
+        return "n/a" if v is None else f"{v:.1f} %"
+
+    error = "n/a" if d["mean_error"] is None else f"{d['mean_error']:.3f}"
+    return (
+        f"{pct(d['bad_reported'])} of {d['bad_frames']} | "
+        f"{pct(d['good_tracking'])} of {d['good_frames']} | {error}"
+    )
+
+
+def render(results: dict[str, Any], seconds: float) -> str:
+    """The markdown report."""
+    counts = ", ".join(str(n) for n in results["node_counts"])
+    lines = [
+        "# Lost detection: the confidence model on sequences it was not fitted on",
+        "",
+        f"- date: {time.strftime('%Y-%m-%dT%H:%M:%S%z')}; {seconds:.0f} s wall time;"
+        " `python -m bench.tracking.confidence`",
+        f"- default tracker, nodes {counts} (every frame of each counts once); frames 1..T-2;"
+        f" cross-validated: {FOLDS} folds of the thirty, the model refitted and the threshold"
+        f" chosen ({KEEP_TRACKING:.1%} of the good frames tracking) on the other folds",
+        "",
+        "| set, model | IoU < 0.2 → uncertain/lost (goal ≥ 80 %) "
+        "| IoU ≥ 0.6 → tracking (goal ≥ 95 %) | mean \\|conf. - IoU\\| |",
+        "|---|---|---|---|",
+    ]
+    for label, r in results.items():
+        if not isinstance(r, dict) or "shipped" not in r:
+            continue
+        where = "in-sample" if label == "davis-train" else "held out"
+        lines.append(
+            f"| {label} ({r['sequences']}), as shipped ({where}) | {_cells(r['shipped'])} |"
+        )
+        if "cross_validated" in r:
+            cv = r["cross_validated"]
+            lines.append(f"| {label}, cross-validated (held-out folds) | {_cells(cv['pooled'])} |")
+    train = results.get("davis-train", {}).get("cross_validated")
+    if train:
+        lines += ["", "Folds (threshold chosen on the others; its frames scored):", ""]
+        for k, f in enumerate(train["folds"]):
+            lines.append(
+                f"- fold {k} (threshold {f['threshold']:.3f}): {_cells(f)}".replace(" | ", "; ")
+            )
+    lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    quick = f"{QUICK_SEQUENCES} sequences a set, 128 nodes"
+    return study_main(argv, __doc__, "confidence", run, render, quick)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
