@@ -120,7 +120,8 @@ def test_the_tracker_shows_the_evidence_behind_its_confidence(frames: list[U8]) 
         assert tracker.evidence is not None
         assert result.confidence == calibrated(tracker.evidence)
     last = tracker.evidence
-    assert last is not None and last.inside > 0.8 > 0.2 > last.outside
+    assert last is not None
+    assert last.inside > 0.8 > 0.2 > last.outside
     assert Tracker.from_state(tracker.to_state()).evidence is None  # not a state
     tracker.step(np.zeros((2, 2, 3), np.uint8))  # nothing to track in so small a frame
     assert tracker.evidence is None
