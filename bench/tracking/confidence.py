@@ -75,7 +75,7 @@ def _sequence(job: tuple[str, str, str, int]) -> dict[str, Any]:
             continue
         kind = UNSEEN if result.confidence == 0.0 else PLAIN
         if kind == PLAIN and result.confidence < calibrated(e):
-            kind = CAPPED
+            kind = CAPPED  # on probation (calibrated has its own cap, applied in reported)
         features = [e.inside, e.outside, e.settled, e.motion_inside, e.motion_outside]
         rows.append([*map(float, features), float(e.motion_seen), kind, result.confidence, iou])
     return {"set": label, "name": name, "nodes": nodes, "rows": rows}
@@ -98,9 +98,13 @@ def fit_model(features: NDArray[np.float64], iou: NDArray[np.float64]) -> NDArra
 def reported(
     w: NDArray[np.float64], features: NDArray[np.float64], kind: NDArray[np.int64], thr: float
 ) -> NDArray[np.float64]:
-    """The confidences the model ``w`` with threshold ``thr`` reports, as the tracker does."""
+    """The confidences the model ``w`` with threshold ``thr`` reports, as the tracker does
+    (capped just below ``thr`` on probation and with nothing object-like inside)."""
+    from engine.tracking.confidence import EMPTY_BELOW
+
     c = 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
-    c = np.where(kind == CAPPED, np.minimum(c, thr - 1e-3), c)
+    capped = (kind == CAPPED) | (features[:, 0] < EMPTY_BELOW)
+    c = np.where(capped, np.minimum(c, thr - 1e-3), c)
     return np.where(kind == UNSEEN, 0.0, c)
 
 

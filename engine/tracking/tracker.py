@@ -43,7 +43,7 @@ from engine.tracking._tracker_state import restore, snapshot
 from engine.tracking.appearance import ColourHistogram
 from engine.tracking.background import MEASURE, Background
 from engine.tracking.confidence import (
-    TRACKING_FROM,
+    UNCONFIRMED,
     Evidence,
     calibrated,
     evidence,
@@ -91,8 +91,6 @@ of two near-equal readings, the one that did not jump wins."""
 PROBATION = 2
 """A re-acquired contour is reported ``uncertain`` for its first 2 frames: a
 jump is right only if the object is then followed from there."""
-UNCONFIRMED = TRACKING_FROM - 1e-3
-"""The confidence reported while on probation: just below ``tracking``."""
 SEARCH_UNLESS_COVERED = 0.2
 """An object at least this much hidden by other tracked objects in front is not searched
 for elsewhere: its low score is theirs, and it is known to be behind them."""
@@ -377,7 +375,7 @@ class Tracker:
         memory.hold = carry(hold, refinement.nodes, nodes)
         if memory.probation > 0:
             memory.probation -= 1
-            confidence = min(confidence, UNCONFIRMED)
+            confidence = min(confidence, UNCONFIRMED)  # on probation: just below tracking
         elif attempt.score >= SEARCH_BELOW:
             if memory.misses >= AFRESH_AFTER:  # back after an absence: occluders forgotten
                 self.cues.start(image, nodes, self.appearance)

@@ -58,6 +58,8 @@ def test_reported_confidences_are_capped_and_zeroed_as_the_tracker_does() -> Non
     assert conf[0] == pytest.approx(calibrated(Evidence(0.9, 0.1, True)))
     assert conf[1] == pytest.approx(0.479)
     assert conf[2] == 0.0
+    empty = np.array([[0.05, 0.0, 1.0, 0.0, 0.0, 0.0]])
+    assert bench.reported(w, empty, np.array([bench.PLAIN]), 0.48)[0] == pytest.approx(0.479)
 
 
 def test_cross_validation_scores_each_fold_with_a_model_fitted_without_it() -> None:

@@ -8,8 +8,10 @@ from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask
 from engine.tracking.confidence import (
+    EMPTY_BELOW,
     LOST_BELOW,
     TRACKING_FROM,
+    UNCONFIRMED,
     Evidence,
     calibrated,
     evidence,
@@ -125,3 +127,30 @@ def test_the_tracker_shows_the_evidence_behind_its_confidence(frames: list[U8]) 
     assert Tracker.from_state(tracker.to_state()).evidence is None  # not a state
     tracker.step(np.zeros((2, 2, 3), np.uint8))  # nothing to track in so small a frame
     assert tracker.evidence is None
+
+
+def test_a_contour_with_nothing_object_like_inside_is_not_tracking() -> None:
+    # left on an occluder that hides the whole object: nothing around it either
+    empty = Evidence(inside=0.05, outside=0.0, settled=True)
+    assert calibrated(empty) == UNCONFIRMED < TRACKING_FROM
+    assert status_of(calibrated(empty)) == "uncertain"
+    assert calibrated(Evidence(inside=EMPTY_BELOW, outside=0.0, settled=True)) > TRACKING_FROM
+    # below the cap the model's own value stands
+    lost = Evidence(inside=0.05, outside=0.6, settled=False)
+    assert calibrated(lost) < LOST_BELOW
+
+
+def test_a_wholly_hidden_object_is_never_reported_tracking() -> None:
+    from engine.geometry import mask_to_contour
+    from engine.testing.synthetic import make_sequence
+
+    # seed 21: the contour stays on the hider, settled, with nothing object-like around
+    seq = make_sequence("hidden", seed=21, length=40)
+    tracker = Tracker(mask_to_contour(seq.masks[0], 128))
+    hidden = []
+    for frame, visible in zip(seq.frames, seq.visible, strict=True):
+        result = tracker.step(frame)
+        if not visible:
+            hidden.append(result.status)
+    assert hidden
+    assert "tracking" not in hidden, hidden
