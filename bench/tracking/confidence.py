@@ -31,6 +31,7 @@ from scipy.optimize import minimize
 from bench.common.data import davis_names
 from bench.common.study import on_two_processes, study_main
 from bench.tracking.cv import make_folds
+from engine.tracking.confidence import EMPTY_BELOW
 
 NODE_COUNTS = (112, 120, 128, 136, 144)
 """The cross-validation's node counts: every frame of each counts once."""
@@ -100,8 +101,6 @@ def reported(
 ) -> NDArray[np.float64]:
     """The confidences the model ``w`` with threshold ``thr`` reports, as the tracker does
     (capped just below ``thr`` on probation and with nothing object-like inside)."""
-    from engine.tracking.confidence import EMPTY_BELOW
-
     c = 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
     capped = (kind == CAPPED) | (features[:, 0] < EMPTY_BELOW)
     c = np.where(capped, np.minimum(c, thr - 1e-3), c)
@@ -119,15 +118,19 @@ def choose_threshold(
     return float(np.quantile(free, 1.0 - KEEP_TRACKING))
 
 
-def detection(conf: NDArray[np.float64], iou: NDArray[np.float64], thr: float) -> dict[str, Any]:
-    """Lost detection at ``thr``: shares (%) and counts of bad and good frames, mean error."""
+def detection(
+    conf: NDArray[np.float64], iou: NDArray[np.float64], thr: float | NDArray[np.float64]
+) -> dict[str, Any]:
+    """Lost detection at ``thr`` (one threshold, or each frame's): shares (%) and counts of
+    bad and good frames, mean error."""
+    thr = np.broadcast_to(thr, conf.shape)
     bad, good = iou < BAD_BELOW, iou >= GOOD_FROM
     nb, ng = int(np.count_nonzero(bad)), int(np.count_nonzero(good))
     return {
         "bad_frames": nb,
-        "bad_reported": 100.0 * np.count_nonzero(conf[bad] < thr) / nb if nb else None,
+        "bad_reported": 100.0 * np.count_nonzero(conf[bad] < thr[bad]) / nb if nb else None,
         "good_frames": ng,
-        "good_tracking": 100.0 * np.count_nonzero(conf[good] >= thr) / ng if ng else None,
+        "good_tracking": 100.0 * np.count_nonzero(conf[good] >= thr[good]) / ng if ng else None,
         "mean_error": float(np.mean(np.abs(conf - iou))) if len(iou) else None,
     }
 
@@ -154,18 +157,10 @@ def cross_validate(rows: dict[str, list[list[float]]], folds: int) -> dict[str, 
         conf = reported(w, tf, tk, thr)
         held.append((conf, ti, thr))
         per_fold.append({"sequences": list(fold), "threshold": thr, **detection(conf, ti, thr)})
-    bad = sum(int(np.count_nonzero(c[i < BAD_BELOW] < t)) for c, i, t in held)
-    good = sum(int(np.count_nonzero(c[i >= GOOD_FROM] >= t)) for c, i, t in held)
-    nb = sum(int(np.count_nonzero(i < BAD_BELOW)) for _, i, _ in held)
-    ng = sum(int(np.count_nonzero(i >= GOOD_FROM)) for _, i, _ in held)
-    errors = np.concatenate([np.abs(c - i) for c, i, _ in held])
-    pooled = {
-        "bad_frames": nb,
-        "bad_reported": 100.0 * bad / nb if nb else None,
-        "good_frames": ng,
-        "good_tracking": 100.0 * good / ng if ng else None,
-        "mean_error": float(errors.mean()) if len(errors) else None,
-    }
+    conf = np.concatenate([c for c, _, _ in held])
+    iou = np.concatenate([i for _, i, _ in held])
+    thresholds = np.concatenate([np.full(len(c), t) for c, _, t in held])
+    pooled = detection(conf, iou, thresholds)
     return {"pooled": pooled, "folds": per_fold}
 
 

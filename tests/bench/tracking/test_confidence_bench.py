@@ -93,3 +93,15 @@ def test_a_quick_run_writes_its_table(tmp_path: Path) -> None:
     if "davis-train" in data:
         assert len(data["davis-train"]["cross_validated"]["folds"]) == bench.QUICK_SEQUENCES
     assert "cross-validated" in (tmp_path / "confidence.md").read_text()
+
+
+def test_without_davis_data_it_says_so_and_exits_1(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr("bench.common.study.davis_sets", dict)
+    assert bench.main(["--out", str(tmp_path)]) == 1
+    assert "no DAVIS data" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+    with pytest.raises(SystemExit) as exit_:
+        bench.main(["--folds", "3"])  # not an option of this study
+    assert exit_.value.code == 2
