@@ -16,10 +16,10 @@ the band keep the side the chain gave them, so the cut can move the
 boundary by at most the band per frame: it pulls in thin parts (legs,
 wings) and lets go of leaks the chain would carry on, and cannot run away
 with the background.  Beyond the band, only what is clearly the object's and
-touches it is taken back (a part the contour lost, :func:`_regrow`).  The largest piece of the cut becomes the contour
-again; when the cut splits the object into comparable pieces (an occluder
-across it), the chain's contour is kept, since one contour cannot follow
-both.  Coordinates are ``[x, y]`` pixels.
+touches it is taken back (a part the contour lost, :func:`_regrow`).  The
+largest piece of the cut becomes the contour again; when the cut splits the
+object into comparable pieces (an occluder across it), the chain's contour is
+kept, since one contour cannot follow both.  Coordinates are ``[x, y]`` pixels.
 """
 
 from __future__ import annotations
