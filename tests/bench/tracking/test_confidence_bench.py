@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -33,21 +34,50 @@ def test_the_fit_recovers_the_model_the_overlap_follows() -> None:
     assert np.allclose(w[:4], wanted, atol=0.15), w
 
 
-def test_the_threshold_keeps_the_asked_share_of_good_frames_tracking() -> None:
+@pytest.mark.parametrize("keep", bench.KEEP_CHOICES)
+def test_the_threshold_keeps_the_asked_share_of_good_frames_tracking(keep: float) -> None:
     rng = np.random.default_rng(2)
     conf = rng.uniform(0, 1, 1000)
     iou = conf.copy()
     kind = np.full(1000, bench.PLAIN)
-    thr = bench.choose_threshold(conf, kind, iou)
+    thr = bench.choose_threshold(conf, kind, iou, keep)
     good = iou >= bench.GOOD_FROM
-    assert np.mean(conf[good] >= thr) == pytest.approx(bench.KEEP_TRACKING, abs=0.01)
+    assert np.mean(conf[good] >= thr) == pytest.approx(keep, abs=0.01)
     # capped and unseen frames are decided otherwise: they do not move it
     kind[~good & (conf < 0.3)] = bench.CAPPED
     kind[~good & (conf < 0.1)] = bench.UNSEEN
-    assert bench.choose_threshold(conf, kind, iou) == thr
+    assert bench.choose_threshold(conf, kind, iou, keep) == thr
     kind[good & (conf > 0.9)] = bench.CAPPED
-    assert bench.choose_threshold(conf, kind, iou) < thr
-    assert bench.choose_threshold(conf, np.full(1000, bench.UNSEEN), iou) == 0.5
+    assert bench.choose_threshold(conf, kind, iou, keep) < thr
+    assert bench.choose_threshold(conf, np.full(1000, bench.UNSEEN), iou, keep) == 0.5
+
+
+def test_the_margin_is_the_nearer_goal_and_absent_frames_clear_it() -> None:
+    found = {"bad_reported": 90.0, "good_tracking": 96.0}
+    assert bench.margin(found) == pytest.approx(1.0)
+    assert bench.margin({"bad_reported": 79.0, "good_tracking": 99.0}) == pytest.approx(-1.0)
+    assert bench.margin({"bad_reported": None, "good_tracking": 96.5}) == pytest.approx(1.5)
+
+
+def test_the_share_is_chosen_on_held_out_sequences() -> None:
+    """Where bad frames look far worse than good ones, keeping more good frames costs no
+    bad one: the largest share wins; where sequences overlap less than their evidence
+    says, keeping nearly all good frames lets their bad frames through: a smaller one."""
+    rows = {f"s{k:02d}": frames(300, seed=k) for k in range(8)}
+    assert bench.choose_keep(rows) == max(bench.KEEP_CHOICES)
+    for k in range(8):
+        extra = frames(300, seed=100 + k, shift=-0.45)
+        rows[f"s{k:02d}"] += [r for r in extra if r[1] < 0.3 and r[0] > 0.4][:12]
+    chosen = bench.choose_keep(rows)
+    assert chosen in bench.KEEP_CHOICES
+    assert bench.choose_keep({"only": rows["s00"]}) == bench.KEEP_CHOICES[0]
+    by_keep = {
+        keep: bench.margin(
+            bench._held_out(rows, bench.INNER_FOLDS, functools.partial(bench._fixed, keep))[0]
+        )
+        for keep in bench.KEEP_CHOICES
+    }
+    assert by_keep[chosen] == max(by_keep.values())
 
 
 def test_reported_confidences_are_capped_and_zeroed_as_the_tracker_does() -> None:
@@ -68,6 +98,7 @@ def test_cross_validation_scores_each_fold_with_a_model_fitted_without_it() -> N
     rows["s03"] = frames(200, seed=3, shift=-0.6)
     found = bench.cross_validate(rows, folds=5)
     assert len(found["folds"]) == 5
+    assert all(f["keep"] in bench.KEEP_CHOICES for f in found["folds"])
     assert sum(len(f["sequences"]) for f in found["folds"]) == 10
     pooled = found["pooled"]
     assert pooled["bad_frames"] + pooled["good_frames"] <= 2000
@@ -93,6 +124,10 @@ def test_a_quick_run_writes_its_table(tmp_path: Path) -> None:
     if "davis-train" in data:
         assert len(data["davis-train"]["cross_validated"]["folds"]) == bench.QUICK_SEQUENCES
     assert "cross-validated" in (tmp_path / "confidence.md").read_text()
+    if "davis-train" in data:
+        rule = data["davis-train"]["rule"]
+        assert rule["keep"] in bench.KEEP_CHOICES
+        assert 0.0 < rule["shipped_threshold"] < 1.0
 
 
 def test_without_davis_data_it_says_so_and_exits_1(
