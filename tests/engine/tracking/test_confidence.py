@@ -8,6 +8,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask
 from engine.tracking.confidence import (
+    COEFFICIENTS,
     EMPTY_BELOW,
     LOST_BELOW,
     TRACKING_FROM,
@@ -132,8 +133,15 @@ def test_the_tracker_shows_the_evidence_behind_its_confidence(frames: list[U8]) 
 def test_a_contour_with_nothing_object_like_inside_is_not_tracking() -> None:
     # left on an occluder that hides the whole object: nothing around it either
     empty = Evidence(inside=0.05, outside=0.0, settled=True)
-    assert calibrated(empty) == UNCONFIRMED < TRACKING_FROM
+    assert calibrated(empty) <= UNCONFIRMED < TRACKING_FROM
     assert status_of(calibrated(empty)) == "uncertain"
+    # a dim inside the linear model alone would call tracking: the cap holds it below
+    dim = Evidence(inside=EMPTY_BELOW - 0.05, outside=0.0, settled=True)
+    model = 1.0 / (
+        1.0 + np.exp(-(COEFFICIENTS[0] + COEFFICIENTS[1] * dim.inside + COEFFICIENTS[3]))
+    )
+    assert model > TRACKING_FROM
+    assert calibrated(dim) == UNCONFIRMED
     assert calibrated(Evidence(inside=EMPTY_BELOW, outside=0.0, settled=True)) > TRACKING_FROM
     # below the cap the model's own value stands
     lost = Evidence(inside=0.05, outside=0.6, settled=False)
