@@ -158,9 +158,9 @@ def choose_keep(rows: dict[str, list[list[float]]]) -> float:
     if len(rows) < 2:
         return best
     for keep in KEEP_CHOICES:
-        found = _held_out(rows, INNER_FOLDS, functools.partial(_fixed, keep))[0]
-        if margin(found) > best_margin:
-            best, best_margin = keep, margin(found)
+        cleared = margin(_held_out(rows, INNER_FOLDS, functools.partial(_fixed, keep))[0])
+        if cleared > best_margin:
+            best, best_margin = keep, cleared
     return best
 
 
