@@ -11,8 +11,8 @@ from numpy.typing import NDArray
 
 import engine
 from engine.geometry import circle_nodes, contour_to_mask
-from engine.tracking.background import background_motion
-from engine.tracking.motion import estimate_motion
+from engine.tracking.background import background_motion, frame_background
+from engine.tracking.motion import FramePair, estimate_motion
 from tests.engine.scenes import shifted, textured_frame
 
 U8 = NDArray[np.uint8]
@@ -51,6 +51,34 @@ def test_a_flat_background_has_no_measurable_motion() -> None:
     flat = np.full((H, W), 128, np.uint8)
     assert background_motion(flat, flat, DISC) is None
     assert background_motion(flat[:1], flat[:1], DISC) is None
+
+
+def test_the_whole_frame_background_leaves_the_objects_out() -> None:
+    # a large disc (a third of the frame, richer in corners than the ground) moves against
+    # the view: fitted with it, the "background" would follow the disc
+    big = circle_nodes((160.0, 120.0), 80.0, 128)
+    move, pan = (7.0, -4.0), (-3.0, 2.0)
+    ground, disc = grey(5), np.asarray(np.clip(grey(6).astype(int) * 2 - 128, 0, 255), np.uint8)
+    inside = contour_to_mask(big, (H, W)) > 0
+    before = np.where(inside, disc, ground).astype(np.uint8)
+    moved = contour_to_mask(big + move, (H, W)) > 0
+    after = np.where(moved, shifted(disc, *move), shifted(ground, *pan)).astype(np.uint8)
+    found = frame_background(before, after, inside)
+    assert found is not None
+    np.testing.assert_allclose(found[:, :2], np.eye(2), atol=0.01)
+    np.testing.assert_allclose(found[:, 2], pan, atol=0.3)
+    # the halved frames, given, are those it would halve itself
+    whole = FramePair.whole(before, after)
+    given = frame_background(before, after, inside, (whole.half_previous, whole.half_current))
+    np.testing.assert_array_equal(given, found)
+    with_disc = frame_background(before, after, np.zeros((H, W), bool))
+    assert with_disc is None or not np.allclose(with_disc[:, 2], pan, atol=0.3)
+
+
+def test_a_flat_or_tiny_frame_has_no_whole_frame_background() -> None:
+    flat = np.full((H, W), 128, np.uint8)
+    assert frame_background(flat, flat, np.zeros((H, W), bool)) is None
+    assert frame_background(flat[:3], flat[:3], np.zeros((3, W), bool)) is None
 
 
 def test_points_moving_with_the_background_are_left_out_of_the_object_motion() -> None:
