@@ -108,6 +108,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("figure_ground", False)
         options.setdefault("shape_memory", False)  # and before the shape memory
         options.setdefault("lighting", False)  # and before the lighting
+        options.setdefault("far_background", 0.0)  # and before the far background
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])

@@ -39,6 +39,9 @@ histogram: an occluder or the background inside a lagging contour does not."""
 TEACH_BACKGROUND_BELOW = 0.9
 """Only pixels the model does not find clearly object-like (p < 0.9) teach the
 background's: the object's own parts outside a lagging contour do not."""
+FAR_RINGS = 2
+"""The far background starts two rings (``2 * band`` pixels) from the contour: past where
+the object may move within a few frames, so its own colours there are not taken in."""
 OBJECT_INSET = 2
 """Object pixels are taken this far inside the contour (a 5 x 5 erosion):
 the contour's own pixels mix object and background."""
@@ -81,9 +84,20 @@ class Histograms:
     background_hist: NDArray[np.float64]
 
     @classmethod
-    def fit(cls, frame: NDArray[np.uint8], nodes: NDArray[np.float64], band: int) -> Histograms:
-        """Histograms from the filled contour and a ``band``-pixel ring around it."""
+    def fit(
+        cls, frame: NDArray[np.uint8], nodes: NDArray[np.float64], band: int, far: float = 0.0
+    ) -> Histograms:
+        """Histograms from the filled contour and a ``band``-pixel ring around it.
+
+        With ``far`` in (0, 1], that share of the background histogram comes from
+        the whole frame beyond ``2 * band`` pixels of the contour (:func:`_far_histogram`)
+        and the rest from the ring.
+        """
         obj, bg = _histograms(frame, nodes, band)
+        if far > 0:
+            seen = _far_histogram(frame, nodes, FAR_RINGS * band)
+            if seen is not None:
+                bg = (1.0 - far) * bg + far * seen
         return cls(obj, bg)
 
     def updated(
@@ -149,14 +163,16 @@ class ColourHistogram:
         What was learnt (None before the first frame).
     """
 
-    def __init__(self, band: int, learning_rate: float) -> None:
+    def __init__(self, band: int, learning_rate: float, far_background: float = 0.0) -> None:
         self.band = band
         self.learning_rate = learning_rate
+        self.far_background = far_background
         self.histograms: Histograms | None = None
 
     def fit(self, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> None:
-        """Learn anew from the filled contour and the ring around it."""
-        self.histograms = Histograms.fit(image, nodes, self.band)
+        """Learn anew from the filled contour, the ring around it and (with
+        ``far_background``) the rest of the frame."""
+        self.histograms = Histograms.fit(image, nodes, self.band, self.far_background)
 
     def update(self, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> None:
         """Blend in a confident frame (see :meth:`Histograms.updated`)."""
@@ -183,7 +199,7 @@ class ColourHistogram:
     def from_state(self, state: Mapping[str, Any]) -> Self:
         """This model's parameters holding ``state`` (of :meth:`to_state`)."""
         check_kind(state, KIND, "appearance")
-        restored = type(self)(self.band, self.learning_rate)
+        restored = type(self)(self.band, self.learning_rate, self.far_background)
         if state.get("object") is not None or state.get("background") is not None:
             obj = unpack_histogram(state["object"])
             bg = unpack_histogram(state["background"])
@@ -191,6 +207,22 @@ class ColourHistogram:
                 raise ValueError("object and background histograms differ in size")
             restored.histograms = Histograms(obj, bg)
         return restored
+
+
+def _far_histogram(
+    frame: NDArray[np.uint8], nodes: NDArray[np.float64], reach: int
+) -> NDArray[np.float64] | None:
+    """Normalised colour histogram of the frame beyond ``reach`` pixels of the contour
+    (a square reach, as the ring's), or None when nothing is that far."""
+    inside = contour_to_mask(nodes, frame.shape[:2])
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * reach + 1, 2 * reach + 1))
+    far = np.asarray(cv2.dilate(inside, kernel), np.uint8) == 0
+    bins = quantise(frame)[far]
+    if len(bins) == 0:
+        return None
+    counts = np.bincount(bins, minlength=bin_count(frame)).astype(np.float64)
+    result: NDArray[np.float64] = counts / len(bins)
+    return result
 
 
 def _histograms(

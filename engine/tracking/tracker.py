@@ -186,7 +186,7 @@ class Tracker:
             opts.max_features, opts.flow_stiffness, opts.figure_ground
         )
         self.appearance: AppearanceModel = appearance or ColourHistogram(
-            opts.band, opts.learning_rate
+            opts.band, opts.learning_rate, opts.far_background
         )
         self.cues: BoundaryCues = cues or RegionEdgeCues(opts.search_radius, opts.occlusion)
         self.segmentation: Segmentation = segmentation or BandCut(opts.cut_band)

@@ -168,3 +168,44 @@ def test_contour_outside_the_frame_gives_an_empty_uninformative_model() -> None:
     prob = model.probability(frame)
     assert np.isfinite(prob).all()
     np.testing.assert_allclose(prob, 0.5)
+
+
+def _scene_with_a_far_patch() -> tuple[U8, NDArray[np.bool_]]:
+    """The two-colour scene with a blue patch in a corner, beyond two rings of the disc."""
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE).copy()
+    patch = np.zeros(SHAPE, bool)
+    patch[:15, 135:] = True
+    frame[patch] = (200, 40, 40)  # BGR blue: in neither the disc nor its ring
+    return frame, patch
+
+
+def test_far_background_knows_the_colours_the_ring_does_not_show() -> None:
+    frame, patch = _scene_with_a_far_patch()
+    ring_only = Histograms.fit(frame, NODES, BAND)
+    with_far = Histograms.fit(frame, NODES, BAND, far=0.2)
+    # the ring never saw the patch: unknown (0.5) to it, background with the far share
+    assert ring_only.probability(frame)[patch].min() == pytest.approx(0.5)
+    assert with_far.probability(frame)[patch].max() < 0.01
+    # the object and its ring read as before
+    inner, _, band = regions()
+    assert with_far.probability(frame)[inner].min() > 0.8
+    assert with_far.probability(frame)[band].max() < 0.2
+    np.testing.assert_array_equal(with_far.object_hist, ring_only.object_hist)
+    assert with_far.background_hist.sum() == pytest.approx(1.0)
+    # none of it is the ring's share: 0 is the ring alone, 1 the far pixels alone
+    np.testing.assert_array_equal(
+        Histograms.fit(frame, NODES, BAND, far=0.0).background_hist, ring_only.background_hist
+    )
+    far_only = Histograms.fit(frame, NODES, BAND, far=1.0).background_hist
+    blue = quantise(frame)[patch][0]
+    assert far_only[blue] > patch.sum() / patch.size  # a share of the far pixels, not the frame
+    assert far_only[quantise(frame)[inner][0]] == 0  # nothing of the object's
+
+
+def test_far_background_needs_pixels_beyond_two_rings() -> None:
+    frame, _ = _scene_with_a_far_patch()
+    big = circle_nodes(CENTER, 200.0, 64)  # the whole frame within reach
+    np.testing.assert_array_equal(
+        Histograms.fit(frame, big, BAND, far=0.5).background_hist,
+        Histograms.fit(frame, big, BAND).background_hist,
+    )

@@ -92,6 +92,21 @@ def test_state_before_any_frame(frames: list[U8]) -> None:
     assert_same(restored.step(frames[0]), tracker.step(frames[0]))
 
 
+def test_far_background_is_kept_through_a_state_and_read_as_off_when_missing(
+    frames: list[U8],
+) -> None:
+    tracker = Tracker(initial(), far_background=0.2)
+    run(tracker, frames[:3])
+    state = through_json(tracker.to_state())
+    restored = Tracker.from_state(state)
+    assert restored.options.far_background == 0.2
+    assert getattr(restored.appearance, "far_background", None) == 0.2
+    for frame in frames[3:6]:
+        assert_same(restored.step(frame), tracker.step(frame))
+    del state["options"]["far_background"]  # written before the option
+    assert Tracker.from_state(state).options.far_background == 0.0
+
+
 def test_state_without_frame_reinitialises_on_the_next_frame(frames: list[U8]) -> None:
     tracker = Tracker(initial())
     run(tracker, frames[:5])

@@ -384,6 +384,10 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("hold_below", -0.1),
     ("hold_below", 2.0),
     ("hold_below", "some"),
+    ("far_background", -0.1),
+    ("far_background", 1.5),
+    ("far_background", math.inf),
+    ("far_background", "all"),
 ]
 
 
