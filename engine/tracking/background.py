@@ -145,33 +145,10 @@ def frame_background(
     hidden = cv2.dilate(flags, block, anchor=(0, 0))[: 4 * qh : 4, : 4 * qw : 4]
     grown = cv2.dilate(np.ascontiguousarray(hidden), np.ones((3, 3), np.uint8))
     allowed = np.asarray(grown == 0, np.uint8)
-    corners = cv2.goodFeaturesToTrack(
-        quarter, MAX_CORNERS, CORNER_QUALITY, FRAME_SPACING, mask=allowed, blockSize=3
+    # half-resolution pixel u is frame pixel 2u + 1/2
+    return _fit(
+        half_previous, half_current, quarter, allowed, (0, 0), FRAME_SPACING, FRAME_LEVELS, 2
     )
-    if corners is None or len(corners) < MIN_POINTS:
-        return None
-    start = np.asarray(corners * 2 + 0.5, np.float32)  # quarter pixel u is half pixel 2u + 1/2
-    end, found, _ = cv2.calcOpticalFlowPyrLK(
-        half_previous,
-        half_current,
-        start,
-        start.copy(),
-        winSize=(WINDOW, WINDOW),
-        maxLevel=FRAME_LEVELS,
-    )
-    kept = found.ravel() == 1
-    if np.count_nonzero(kept) < MIN_POINTS:
-        return None
-    # half pixel u is frame pixel 2u + 1/2
-    matrix, inliers = fit_similarity(
-        2 * start[kept] + 0.5,
-        2 * end[kept] + 0.5,
-        threshold=RANSAC_THRESHOLD,
-        iterations=RANSAC_ITERATIONS,
-    )
-    if matrix is None or int(np.count_nonzero(inliers)) < MIN_POINTS:
-        return None
-    return np.asarray(matrix, np.float64)
 
 
 def _halved(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -188,23 +165,30 @@ def _fit(
     half: NDArray[np.uint8],
     allowed: NDArray[np.uint8],
     origin: tuple[int, int],
+    spacing: int = CORNER_SPACING,
+    levels: int = LEVELS,
+    scale: int = 1,
 ) -> NDArray[np.float64] | None:
     """Corners of ``half`` (``previous`` halved) where ``allowed``, tracked into ``current``,
-    and the similarity RANSAC fits to them, in frame coordinates (regions at ``origin``)."""
+    and the similarity RANSAC fits to them, in frame coordinates (regions at ``origin``
+    whose pixel ``u`` is frame pixel ``scale * u + (scale - 1) / 2``)."""
     corners = cv2.goodFeaturesToTrack(
-        half, MAX_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=allowed, blockSize=3
+        half, MAX_CORNERS, CORNER_QUALITY, spacing, mask=allowed, blockSize=3
     )
     if corners is None or len(corners) < MIN_POINTS:
         return None
-    start = np.asarray(corners * 2 + 0.5, np.float32)  # half pixel u is frame pixel 2u + 1/2
+    start = np.asarray(corners * 2 + 0.5, np.float32)  # half pixel u is region pixel 2u + 1/2
     end, found, _ = cv2.calcOpticalFlowPyrLK(
-        previous, current, start, start.copy(), winSize=(WINDOW, WINDOW), maxLevel=LEVELS
+        previous, current, start, start.copy(), winSize=(WINDOW, WINDOW), maxLevel=levels
     )
     kept = found.ravel() == 1
     if np.count_nonzero(kept) < MIN_POINTS:
         return None
+    start, end = start[kept], end[kept]
+    if scale != 1:
+        start, end = scale * start + 0.5 * (scale - 1), scale * end + 0.5 * (scale - 1)
     matrix, inliers = fit_similarity(
-        start[kept], end[kept], threshold=RANSAC_THRESHOLD, iterations=RANSAC_ITERATIONS
+        start, end, threshold=RANSAC_THRESHOLD, iterations=RANSAC_ITERATIONS
     )
     if matrix is None or int(np.count_nonzero(inliers)) < MIN_POINTS:
         return None
