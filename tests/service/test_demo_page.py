@@ -36,6 +36,7 @@ from playwright.sync_api import (
     expect,
     sync_playwright,
 )
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from service.settings import Settings
 from tests.service.conftest import LiveServer, disc_frame
@@ -196,17 +197,24 @@ def draw_polygon(page: Page, disc: dict[str, float], scale: float, box: FloatRec
 
 
 def wait_for_tracking(page: Page, start: dict[str, float], results: int = 10) -> dict[str, Any]:
-    """Wait (bounded) for ``results`` results, the last of a disc moved >= 20 px."""
-    page.wait_for_function(
-        """([n, x0, y0]) => {
-            const d = window.efdmDemo;
-            if (d.lastError || d.closed) return true;  // fail fast below
-            const disc = d.lastResultDisc;
-            return d.results >= n && disc && Math.hypot(disc.x - x0, disc.y - y0) >= 20;
-        }""",
-        arg=[results, start["x"], start["y"]],
-        timeout=TIMEOUT_MS,
-    )
+    """Wait (bounded) for ``results`` results, the last of a disc moved >= 20 px; on a
+    timeout, fail with the page's state (what arrived, the last contour, any error)."""
+    try:
+        page.wait_for_function(
+            """([n, x0, y0]) => {
+                const d = window.efdmDemo;
+                if (d.lastError || d.closed) return true;  // fail fast below
+                const disc = d.lastResultDisc;
+                return d.results >= n && disc && Math.hypot(disc.x - x0, disc.y - y0) >= 20;
+            }""",
+            arg=[results, start["x"], start["y"]],
+            timeout=TIMEOUT_MS,
+        )
+    except PlaywrightTimeout:
+        raise AssertionError(
+            f"no {results} tracked results with the disc moved 20 px from {start} within "
+            f"{TIMEOUT_MS} ms; the page's state: {state(page)}"
+        ) from None
     snapshot = state(page)
     assert snapshot["lastError"] is None, snapshot["lastError"]
     assert snapshot["closed"] is None, snapshot["closed"]
