@@ -192,7 +192,7 @@ def test_far_background_knows_the_colours_the_ring_does_not_show() -> None:
     assert with_far.probability(frame)[band].max() < 0.2
     np.testing.assert_array_equal(with_far.object_hist, ring_only.object_hist)
     assert with_far.background_hist.sum() == pytest.approx(1.0)
-    # none of it is the ring's share: 0 is the ring alone, 1 the far pixels alone
+    # the limits: 0 is the ring alone, 1 the far pixels alone
     np.testing.assert_array_equal(
         Histograms.fit(frame, NODES, BAND, far=0.0).background_hist, ring_only.background_hist
     )
