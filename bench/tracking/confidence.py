@@ -39,7 +39,7 @@ from scipy.optimize import minimize
 from bench.common.data import davis_names
 from bench.common.study import on_two_processes, study_main
 from bench.tracking.cv import make_folds
-from engine.tracking.confidence import EMPTY_BELOW
+from engine.tracking.confidence import EMPTY_BELOW, SEPARATION_BELOW
 
 NODE_COUNTS = (112, 120, 128, 136, 144)
 """The cross-validation's node counts: every frame of each counts once."""
@@ -57,6 +57,9 @@ GOOD_FROM, BAD_BELOW = 0.6, 0.2
 """The issue's overlaps: frames that should be ``tracking``, and frames that should not."""
 GOOD_GOAL, BAD_GOAL = 95.0, 80.0
 """The issue's goals (%): good frames reported ``tracking``, bad ones not."""
+FEATURES = 7
+"""Inputs of the model, in :data:`engine.tracking.confidence.COEFFICIENTS` order (after
+its bias): a row is these, then the frame's kind, reported confidence and IoU."""
 UNSEEN, CAPPED, PLAIN = 0, 1, 2
 """How a frame's reported confidence relates to its evidence: 0 (the contour outside the
 frame), capped just below ``tracking`` (probation after a re-acquisition), or the model's."""
@@ -84,13 +87,14 @@ def _sequence(job: tuple[str, str, str, int]) -> dict[str, Any]:
             continue
         iou = mask_iou(contour_to_mask(result.nodes, mask.shape), mask)
         if e is None:
-            rows.append([0.0] * 6 + [UNSEEN, result.confidence, iou])
+            rows.append([0.0] * FEATURES + [UNSEEN, result.confidence, iou])
             continue
         kind = UNSEEN if result.confidence == 0.0 else PLAIN
         if kind == PLAIN and result.confidence < calibrated(e):
             kind = CAPPED  # on probation (calibrated has its own cap, applied in reported)
         features = [e.inside, e.outside, e.settled, e.motion_inside, e.motion_outside]
-        rows.append([*map(float, features), float(e.motion_seen), kind, result.confidence, iou])
+        features += [e.motion_seen, e.shape]
+        rows.append([*map(float, features), kind, result.confidence, iou])
     return {"set": label, "name": name, "nodes": nodes, "rows": rows}
 
 
@@ -112,9 +116,11 @@ def reported(
     w: NDArray[np.float64], features: NDArray[np.float64], kind: NDArray[np.int64], thr: float
 ) -> NDArray[np.float64]:
     """The confidences the model ``w`` with threshold ``thr`` reports, as the tracker does
-    (capped just below ``thr`` on probation and with nothing object-like inside)."""
+    (capped just below ``thr`` on probation, with nothing object-like inside and with
+    nothing telling the inside from the ring)."""
     c = 1.0 / (1.0 + np.exp(-(w[0] + features @ w[1:])))
-    capped = (kind == CAPPED) | (features[:, 0] < EMPTY_BELOW)
+    inside, outside = features[:, 0], features[:, 1]
+    capped = (kind == CAPPED) | (inside < EMPTY_BELOW) | (inside - outside < SEPARATION_BELOW)
     c = np.where(capped, np.minimum(c, thr - 1e-3), c)
     return np.where(kind == UNSEEN, 0.0, c)
 
@@ -184,8 +190,8 @@ def detection(
 def _arrays(
     rows: list[list[float]],
 ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any], NDArray[Any]]:
-    a = np.asarray(rows, np.float64).reshape(-1, 9)
-    return a[:, :6], a[:, 6].astype(np.int64), a[:, 7], a[:, 8]
+    a = np.asarray(rows, np.float64).reshape(-1, FEATURES + 3)
+    return a[:, :FEATURES], a[:, FEATURES].astype(np.int64), a[:, -2], a[:, -1]
 
 
 def _held_out(
@@ -249,9 +255,12 @@ def run(sets: dict[str, Path], quick: bool) -> dict[str, Any]:
             keep = choose_keep(by_name)
             features, kind, _, iou = _arrays([r for rows in by_name.values() for r in rows])
             shipped = reported(np.asarray(COEFFICIENTS), features, kind, 1.0)
+            fitted, threshold = fit_rule([r for rows in by_name.values() for r in rows], keep)
             figures["rule"] = {
                 "keep": keep,
                 "shipped_threshold": choose_threshold(shipped, kind, iou, keep),
+                "fitted": [round(float(w), 4) for w in fitted],
+                "fitted_threshold": threshold,
             }
         out[label] = figures
     out["shipped_model"] = {"coefficients": list(COEFFICIENTS), "tracking_from": TRACKING_FROM}
@@ -312,7 +321,9 @@ def render(results: dict[str, Any], seconds: float) -> str:
             "",
             f"The rule on all thirty: keep {rule['keep']:.1%} of the good frames tracking; the"
             f" shipped model's threshold under it {rule['shipped_threshold']:.3f}"
-            f" (shipped: {shipped}).",
+            f" (shipped: {shipped}).  The model fitted to all thirty:"
+            f" {tuple(rule['fitted'])}, threshold {rule['fitted_threshold']:.3f}"
+            " (shipped: the coefficients of `engine.tracking.confidence.COEFFICIENTS`).",
         ]
     lines.append("")
     return "\n".join(lines)

@@ -137,12 +137,13 @@ class TrackerOptions:
         the whole frame beyond two rings of the contour, the rest from the
         ring (:meth:`engine.tracking.appearance.Histograms.fit`): colours
         the ring does not show but the scene does are known as background
-        when the object moves onto them.  Default 0 (the ring alone): 0.2
-        is chosen in all five folds of the thirty training sequences (J
-        0.707 against 0.696 cross-validated), but the confidence model,
-        fitted to tracks without it, then reports far fewer lost frames on
-        sequences it was not fitted on (52 % of them against 88 %); see
-        ``docs/tracking-log.md``.
+        when the object moves onto them.  Default 0.2, chosen in all five
+        folds of the thirty training sequences over 0, 0.1 and 0.3 (J 0.707
+        against 0.696 without, cross-validated).  It waited until the
+        confidence model judged the contour's shape too
+        (:func:`engine.tracking.confidence.shape_overlap`): without that, the
+        model reported far fewer lost frames on sequences it was not fitted
+        on (52 % of them against 88 %); see ``docs/tracking-log.md``.
 
     Raises
     ------
@@ -169,7 +170,7 @@ class TrackerOptions:
     figure_ground: bool = True
     shape_memory: bool = True
     lighting: bool = True
-    far_background: float = 0.0
+    far_background: float = 0.2
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:

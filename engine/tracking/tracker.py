@@ -444,7 +444,7 @@ class Tracker:
         cut = None if behind else self.segmentation.segment(image, maps, prediction.nodes, nodes)
         if cut is not None and valid_contour(cut, grey.shape, self._nodes):
             nodes = cut
-        found = evidence(maps, nodes, refinement.converged)
+        found = evidence(maps, nodes, refinement.converged, self._memory.outline)
         return _Attempt(refinement, nodes, found, calibrated(found), search_score(found))
 
     def _search(

@@ -11,11 +11,13 @@ from engine.tracking.confidence import (
     COEFFICIENTS,
     EMPTY_BELOW,
     LOST_BELOW,
+    SEPARATION_BELOW,
     TRACKING_FROM,
     UNCONFIRMED,
     Evidence,
     calibrated,
     evidence,
+    shape_overlap,
     status_of,
 )
 from engine.tracking.maps import Maps
@@ -53,8 +55,16 @@ def test_confidence_rises_with_the_evidence() -> None:
     for settled in (False, True):
         inside = [calibrated(Evidence(p, 0.2, settled)) for p in grid]
         outside = [calibrated(Evidence(0.8, p, settled)) for p in grid]
-        assert np.all(np.diff(inside) > 0)
-        assert np.all(np.diff(outside) < 0)
+        shape = [calibrated(Evidence(0.8, 0.2, settled, shape=p)) for p in grid]
+        # capped just under tracking: nothing object-like inside, or nothing telling the
+        # inside from the ring
+        model = grid >= EMPTY_BELOW
+        assert np.all(np.diff(np.array(inside)[model]) > 0)
+        assert np.all(np.diff(inside) >= 0)
+        seen = 0.8 - grid > SEPARATION_BELOW + 1e-9
+        assert np.all(np.diff(np.array(outside)[seen]) < 0)
+        assert np.all(np.diff(outside) <= 0)
+        assert np.all(np.diff(shape) > 0)
         assert all(0.0 < c < 1.0 for c in inside + outside)
     assert calibrated(Evidence(0.8, 0.2, True)) > calibrated(Evidence(0.8, 0.2, False))
     assert calibrated(Evidence(1.0, 0.0, True)) >= TRACKING_FROM
@@ -67,7 +77,8 @@ def test_moving_with_the_object_inside_and_with_the_background_outside_raises_it
     plain = Evidence(0.7, 0.3, True)
     agreed = Evidence(0.7, 0.3, True, motion_inside=1.5, motion_outside=-1.5, motion_seen=True)
     crossed = Evidence(0.7, 0.3, True, motion_inside=-1.5, motion_outside=1.5, motion_seen=True)
-    assert calibrated(agreed) > calibrated(plain) > calibrated(crossed)
+    assert calibrated(agreed) > calibrated(crossed)
+    assert calibrated(agreed) > calibrated(plain)
 
 
 def test_evidence_reads_the_motion_contrast_where_it_was_measured() -> None:
@@ -85,6 +96,38 @@ def test_evidence_reads_the_motion_contrast_where_it_was_measured() -> None:
     still = evidence(maps, circle_nodes((60.0, 50.0), 20.0, 64), settled=True)
     assert not still.motion_seen
     assert still.motion_inside == still.motion_outside == 0.0
+
+
+def test_shape_overlap_ignores_place_and_size() -> None:
+    disc = circle_nodes((60.0, 50.0), 20.0, 64)
+    assert shape_overlap(disc, disc) == pytest.approx(1.0)
+    assert shape_overlap(disc, 3.0 * disc + [400.0, -90.0]) > 0.97
+    assert shape_overlap(disc, disc[::-1]) > 0.97  # either winding
+
+
+def test_shape_overlap_falls_as_the_shape_departs() -> None:
+    disc = circle_nodes((0.0, 0.0), 20.0, 64)
+    ellipses = [disc * [1.0, k] for k in (1.0, 0.8, 0.5, 0.25)]
+    overlaps = [shape_overlap(e, disc) for e in ellipses]
+    assert np.all(np.diff(overlaps) < 0)
+    assert overlaps[-1] < 0.6
+    # rotation is kept: the outline turns with the object
+    lying, standing = disc * [1.0, 0.25], disc * [0.25, 1.0]
+    assert shape_overlap(lying, standing) < 0.3
+    # no area: nothing like any shape
+    line = np.column_stack([np.linspace(0.0, 10.0, 8), np.zeros(8)])
+    assert shape_overlap(line, disc) == shape_overlap(disc, line) == 0.0
+
+
+def test_evidence_judges_the_shape_against_the_outline_given() -> None:
+    nodes = circle_nodes((60.0, 50.0), 20.0, 64)
+    assert evidence(disc_maps(), nodes, True).shape == 1.0  # no outline: not judged
+    same = evidence(disc_maps(), nodes, True, outline=0.5 * nodes)
+    assert same.shape > 0.97
+    flat = evidence(disc_maps(), nodes, True, outline=nodes * [1.0, 0.2])
+    assert flat.shape < 0.5
+    assert calibrated(flat) < calibrated(same)
+    assert (flat.inside, flat.outside) == (same.inside, same.outside)
 
 
 @pytest.mark.parametrize(
@@ -125,6 +168,7 @@ def test_the_tracker_shows_the_evidence_behind_its_confidence(frames: list[U8]) 
     last = tracker.evidence
     assert last is not None
     assert last.inside > 0.8 > 0.2 > last.outside
+    assert last.shape > 0.9  # the disc keeps the first frame's shape
     assert Tracker.from_state(tracker.to_state()).evidence is None  # not a state
     tracker.step(np.zeros((2, 2, 3), np.uint8))  # nothing to track in so small a frame
     assert tracker.evidence is None
@@ -137,15 +181,26 @@ def test_a_contour_with_nothing_object_like_inside_is_not_tracking() -> None:
     assert status_of(calibrated(empty)) == "uncertain"
     # a dim inside the linear model alone would call tracking: the cap holds it below
     dim = Evidence(inside=EMPTY_BELOW - 0.05, outside=0.0, settled=True)
-    model = 1.0 / (
-        1.0 + np.exp(-(COEFFICIENTS[0] + COEFFICIENTS[1] * dim.inside + COEFFICIENTS[3]))
-    )
+    logit = COEFFICIENTS[0] + COEFFICIENTS[1] * dim.inside + COEFFICIENTS[3] + COEFFICIENTS[7]
+    model = 1.0 / (1.0 + np.exp(-logit))
     assert model > TRACKING_FROM
     assert calibrated(dim) == UNCONFIRMED
     assert calibrated(Evidence(inside=EMPTY_BELOW, outside=0.0, settled=True)) > TRACKING_FROM
     # below the cap the model's own value stands
     lost = Evidence(inside=0.05, outside=0.6, settled=False)
     assert calibrated(lost) < LOST_BELOW
+
+
+def test_a_contour_that_nothing_tells_from_its_surroundings_is_not_tracking() -> None:
+    # no colour known (a black frame): the chain kept the shape, but nothing else is seen
+    unknown = Evidence(inside=0.5, outside=0.5, settled=True, shape=1.0)
+    logit = COEFFICIENTS[0] + 0.5 * (COEFFICIENTS[1] + COEFFICIENTS[2])
+    model = 1.0 / (1.0 + np.exp(-(logit + COEFFICIENTS[3] + COEFFICIENTS[7])))
+    assert model > TRACKING_FROM  # the linear model alone would call it tracking
+    assert calibrated(unknown) == UNCONFIRMED
+    edge = 0.3 + SEPARATION_BELOW
+    assert calibrated(Evidence(inside=edge - 0.01, outside=0.3, settled=True)) == UNCONFIRMED
+    assert calibrated(Evidence(inside=edge + 0.01, outside=0.3, settled=True)) > TRACKING_FROM
 
 
 def test_a_wholly_hidden_object_is_never_reported_tracking() -> None:

@@ -259,8 +259,17 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
     """States written before the stages (version 1) continue as if uninterrupted."""
     old: State = json.loads(VERSION_1.read_text())
     assert old["version"] == 1
-    # version 1 had no segmentation stage, no motion contrast and no figure-ground split
-    tracker = Tracker(initial(), cut_band=0, motion_contrast=False, figure_ground=False)
+    # version 1 had no segmentation stage, no motion contrast, no figure-ground split, no
+    # shape memory, no lighting and no far background
+    tracker = Tracker(
+        initial(),
+        cut_band=0,
+        motion_contrast=False,
+        figure_ground=False,
+        shape_memory=False,
+        lighting=False,
+        far_background=0.0,
+    )
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])
     restored = Tracker.from_state(old)
