@@ -101,8 +101,21 @@ def test_evidence_reads_the_motion_contrast_where_it_was_measured() -> None:
 def test_shape_overlap_ignores_place_and_size() -> None:
     disc = circle_nodes((60.0, 50.0), 20.0, 64)
     assert shape_overlap(disc, disc) == pytest.approx(1.0)
-    assert shape_overlap(disc, 3.0 * disc + [400.0, -90.0]) > 0.97
+    flat = disc * [1.0, 0.6]
+    for scale, shift in [(3.0, (400.0, -90.0)), (0.2, (-7.5, 3.25)), (11.0, (0.0, 0.0))]:
+        assert shape_overlap(flat, scale * flat + shift) == pytest.approx(1.0)
     assert shape_overlap(disc, disc[::-1]) > 0.97  # either winding
+
+
+@pytest.mark.parametrize(
+    "bad", [[[0.0, 0.0], [1.0, 1.0]], [[0.0, 0.0], [1.0, np.nan], [2.0, 0.0]], [1.0, 2.0, 3.0]]
+)
+def test_shape_overlap_rejects_what_is_not_a_contour(bad: object) -> None:
+    disc = circle_nodes((0.0, 0.0), 20.0, 64)
+    with pytest.raises(ValueError, match="nodes"):
+        shape_overlap(np.asarray(bad), disc)
+    with pytest.raises(ValueError, match="nodes"):
+        shape_overlap(disc, np.asarray(bad))
 
 
 def test_shape_overlap_falls_as_the_shape_departs() -> None:
