@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import as_nodes, contour_to_mask
+from engine.geometry import as_nodes, contour_to_mask, mask_iou
 from engine.tracking.maps import Maps
 from engine.tracking.occlusion import BACKGROUND_BELOW
 
@@ -158,7 +158,7 @@ class Evidence:
     shape: float = 1.0
 
 
-def _normalised(nodes: NDArray[np.float64]) -> NDArray[np.bool_] | None:
+def _normalised(nodes: NDArray[np.float64]) -> NDArray[np.uint8] | None:
     """The closed contour moved to its centroid and scaled to :data:`SHAPE_SCALE` grid
     pixels per square root of its area, filled on the :data:`SHAPE_GRID` grid (None: no
     area)."""
@@ -167,7 +167,7 @@ def _normalised(nodes: NDArray[np.float64]) -> NDArray[np.bool_] | None:
         return None
     centroid = np.array([m["m10"], m["m01"]]) / m["m00"]
     scaled = (nodes - centroid) * (SHAPE_SCALE / math.sqrt(abs(m["m00"]))) + SHAPE_GRID / 2
-    return contour_to_mask(scaled, (SHAPE_GRID, SHAPE_GRID)) > 0
+    return contour_to_mask(scaled, (SHAPE_GRID, SHAPE_GRID))
 
 
 def shape_overlap(nodes: NDArray[np.float64], outline: NDArray[np.float64]) -> float:
@@ -194,10 +194,7 @@ def shape_overlap(nodes: NDArray[np.float64], outline: NDArray[np.float64]) -> f
         If either is not an (N, 2) array of at least 3 finite points.
     """
     a, b = _normalised(as_nodes(nodes)), _normalised(as_nodes(outline))
-    if a is None or b is None:
-        return 0.0
-    union = np.count_nonzero(a | b)
-    return float(np.count_nonzero(a & b) / union) if union else 0.0
+    return 0.0 if a is None or b is None else float(mask_iou(a, b))
 
 
 def evidence(
