@@ -17,6 +17,7 @@ def warm_up() -> None:
     from engine.tracking import _cut_kernels as cut
     from engine.tracking import _image_kernels as image
     from engine.tracking import _lighting_kernel as light
+    from engine.tracking import _occluder_kernels as occluder
     from engine.tracking._refine_kernel import refine_chain
 
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -42,6 +43,9 @@ def warm_up() -> None:
         light.interior(flags, 0, (0, 0), 1, picture)
         light.carried(np.zeros((1, 2), np.int64), colours, np.zeros((2, 3)), picture)
         light.ratio_step(colours, colours, light.LOG, 8, 247, 102)
+        labels = np.zeros((2, 2), np.int32)
+        occluder.ring_histogram(picture, (0, 0), 1, flags, flags, flags, 3)
+        occluder.label_histograms(picture, (0, 0), labels, 1, 1, 3)
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
     image.scale_odds(maps, maps)

@@ -66,7 +66,10 @@ class RegionEdgeCues:
         remembered = maps
         if self.occlusion:
             silhouette = (prediction.matrix, prediction.rigid)
-            maps, remembered = unoccluded(maps, self._memory, silhouette)
+            # what is in front matters only to a prediction bent by the flow
+            bent = not np.array_equal(prediction.nodes, prediction.rigid)
+            judge = image if bent else None
+            maps, remembered = unoccluded(maps, self._memory, silhouette, judge)
         self._memory = remembered.origin, _as_bytes(remembered.probability)
         return maps
 

@@ -70,6 +70,11 @@ class Maps:
         (:mod:`engine.tracking.motion_contrast`), kept apart
         from ``probability`` for the segmentation to add to its own colour
         models; None when the motion says nothing.
+    in_front : bool
+        Whether the object is partly behind something: a piece the occlusion
+        rule took for covered has colours its surroundings lack
+        (:func:`engine.tracking.occlusion.foreign`).  Judged only for a
+        prediction bent by the flow (to a rigid one it makes no difference).
     """
 
     origin: tuple[int, int]
@@ -78,6 +83,7 @@ class Maps:
     edge_step: int = 1
     observed: NDArray[np.float32] | None = None
     motion: NDArray[np.float32] | None = None
+    in_front: bool = False
 
     @property
     def seen(self) -> NDArray[np.float32]:

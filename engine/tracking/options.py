@@ -144,6 +144,16 @@ class TrackerOptions:
         (:func:`engine.tracking.confidence.shape_overlap`): without that, the
         model reported far fewer lost frames on sequences it was not fitted
         on (52 % of them against 88 %); see ``docs/tracking-log.md``.
+    rigid_behind : bool
+        When the occlusion rule finds the object partly behind something
+        whose colours its surroundings lack
+        (:func:`engine.tracking.occlusion.foreign`), the prediction is the
+        similarity alone, not bent by the dense flow (default True: the flow
+        next to a pole or a bar in front is the front object's, and drags the
+        contour along with it; as for an object behind another tracked one).
+        Cross-validated on the thirty training sequences over five node
+        counts: chosen in all five folds, J 0.717 against 0.707; the synthetic
+        ``occluder`` misses its goal on 4 seeds of 24 instead of 12.
 
     Raises
     ------
@@ -171,6 +181,7 @@ class TrackerOptions:
     shape_memory: bool = True
     lighting: bool = True
     far_background: float = 0.2
+    rigid_behind: bool = True
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -205,6 +216,13 @@ class TrackerOptions:
         band = self.cut_band
         if isinstance(band, bool) or not isinstance(band, int) or not 0 <= band <= MAX_CUT_BAND:
             raise ValueError(f"cut_band must be an integer in [0, {MAX_CUT_BAND}]; got {band!r}")
-        for name in ("occlusion", "motion_contrast", "figure_ground", "shape_memory", "lighting"):
+        for name in (
+            "occlusion",
+            "motion_contrast",
+            "figure_ground",
+            "shape_memory",
+            "lighting",
+            "rigid_behind",
+        ):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false; got {getattr(self, name)!r}")

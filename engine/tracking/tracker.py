@@ -412,6 +412,9 @@ class Tracker:
         (:mod:`engine.tracking.shape_memory`).
         """
         maps = cues.maps(image, grey, prediction, self.appearance)
+        if maps.in_front and self.options.rigid_behind:
+            # partly behind something: the flow next to it is the front object's
+            prediction = dataclasses.replace(prediction, nodes=prediction.rigid)
         guide = maps
         if self.options.motion_contrast and self._previous is not None:
             shape = maps.probability.shape

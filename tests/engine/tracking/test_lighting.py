@@ -265,7 +265,7 @@ def test_the_whole_frame_measured_once_for_several_trackers_is_the_same() -> Non
     assert own.log_gains.min() > 0.2
 
 
-def crowd_under_dimming(lighting: bool) -> float:
+def crowd_under_dimming(lighting: bool, rigid_behind: bool = True) -> float:
     """The worst of three objects' mean IoU in a session while the light dims by a third."""
     from engine.testing.crowd import make_crowd
     from engine.tracking import ObjectsTracker
@@ -273,7 +273,7 @@ def crowd_under_dimming(lighting: bool) -> float:
     crowd = make_crowd(seed=0, length=24)
     keys: list[Hashable] = [0, 1, 2]
     outlines = {k: mask_to_contour(crowd.masks[int(str(k))][0], 64) for k in keys}
-    tracker = ObjectsTracker(outlines, lighting=lighting)
+    tracker = ObjectsTracker(outlines, lighting=lighting, rigid_behind=rigid_behind)
     ious: dict[Hashable, list[float]] = {k: [] for k in keys}
     for i, frame in enumerate(crowd.frames):
         t = i / (len(crowd.frames) - 1)
@@ -287,7 +287,10 @@ def crowd_under_dimming(lighting: bool) -> float:
 def test_several_objects_keep_their_colours_through_a_change_of_light() -> None:
     # the whole frame's part measured once for the session (engine.tracking.shared)
     assert crowd_under_dimming(lighting=True) >= 0.95
-    assert crowd_under_dimming(lighting=False) < 0.9
+    assert crowd_under_dimming(lighting=True, rigid_behind=False) >= 0.95
+    # unlit, the dimmed objects look like something foreign in front of themselves: the
+    # rigid prediction behind it holds their shapes, but the colours alone do not
+    assert crowd_under_dimming(lighting=False, rigid_behind=False) < 0.9
 
 
 def test_the_option_must_be_a_bool() -> None:

@@ -107,6 +107,17 @@ def test_far_background_is_kept_through_a_state_and_read_as_off_when_missing(
     assert Tracker.from_state(state).options.far_background == 0.0
 
 
+def test_rigid_behind_is_kept_through_a_state_and_read_as_off_when_missing(
+    frames: list[U8],
+) -> None:
+    tracker = Tracker(initial(), rigid_behind=True)
+    run(tracker, frames[:3])
+    state = through_json(tracker.to_state())
+    assert Tracker.from_state(state).options.rigid_behind is True
+    del state["options"]["rigid_behind"]  # written before the option
+    assert Tracker.from_state(state).options.rigid_behind is False
+
+
 def test_state_without_frame_reinitialises_on_the_next_frame(frames: list[U8]) -> None:
     tracker = Tracker(initial())
     run(tracker, frames[:5])
@@ -260,7 +271,7 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
     old: State = json.loads(VERSION_1.read_text())
     assert old["version"] == 1
     # version 1 had no segmentation stage, no motion contrast, no figure-ground split, no
-    # shape memory, no lighting and no far background
+    # shape memory, no lighting, no far background and no rigid prediction behind occluders
     tracker = Tracker(
         initial(),
         cut_band=0,
@@ -269,6 +280,7 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
         shape_memory=False,
         lighting=False,
         far_background=0.0,
+        rigid_behind=False,
     )
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])
