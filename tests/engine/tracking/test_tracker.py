@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from engine import TrackerOptions
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, polygon_area, resample
+from engine.tracking.confidence import TRACKING_FROM
 from engine.tracking.tracker import Tracker
 from tests.engine.scenes import DiscScene, centroid
 from tests.engine.tracking.moving_disc import (
@@ -230,7 +231,9 @@ def test_black_frames_lower_the_confidence(frames: list[U8]) -> None:
     results = [tracker.step(black) for _ in range(6)]
     for result in results:
         check_result(result)
-    assert all(r.confidence < 0.5 for r in results[2:]), [r.confidence for r in results]
+    # nothing tells the contour from its surroundings: never reported tracking
+    assert all(r.confidence < TRACKING_FROM for r in results[2:]), [r.confidence for r in results]
+    assert all(r.status != "tracking" for r in results[2:])
     # with nothing to see the contour neither wanders off nor collapses
     shift = np.hypot(*(results[-1].nodes.mean(axis=0) - before.mean(axis=0)))
     assert shift < 5.0
@@ -388,6 +391,8 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("far_background", 1.5),
     ("far_background", math.inf),
     ("far_background", "all"),
+    ("rigid_behind", 1),
+    ("rigid_behind", "yes"),
 ]
 
 
