@@ -41,11 +41,17 @@ class RegionEdgeCues:
         grown by twice this (pixels).
     occlusion : bool
         :attr:`TrackerOptions.occlusion`: make covered pixels neutral.
+    judge_front : bool, default False
+        :attr:`TrackerOptions.rigid_behind`: judge the covered pieces by their
+        colours (:func:`engine.tracking.occlusion.foreign`), setting the maps'
+        ``in_front`` (for a prediction bent by the flow: to a rigid one it makes
+        no difference).
     """
 
-    def __init__(self, search_radius: int, occlusion: bool) -> None:
+    def __init__(self, search_radius: int, occlusion: bool, judge_front: bool = False) -> None:
         self.search_radius = search_radius
         self.occlusion = occlusion
+        self.judge_front = judge_front
         # p(object) as 0-255 around the contour in the last frame, and its origin
         self._memory: LocatedProbability | None = None
 
@@ -68,7 +74,7 @@ class RegionEdgeCues:
             silhouette = (prediction.matrix, prediction.rigid)
             # what is in front matters only to a prediction bent by the flow
             bent = not np.array_equal(prediction.nodes, prediction.rigid)
-            judge = image if bent else None
+            judge = image if self.judge_front and bent else None
             maps, remembered = unoccluded(maps, self._memory, silhouette, judge)
         self._memory = remembered.origin, _as_bytes(remembered.probability)
         return maps
@@ -106,7 +112,7 @@ class RegionEdgeCues:
     def from_state(self, state: Mapping[str, Any]) -> Self:
         """These cues holding ``state`` (of :meth:`to_state` or :meth:`to_compact_state`)."""
         check_kind(state, KIND, "cues")
-        restored = type(self)(self.search_radius, self.occlusion)
+        restored = type(self)(self.search_radius, self.occlusion, self.judge_front)
         memory = state.get("memory")
         if memory is not None:
             x, y = (int(v) for v in memory["origin"])

@@ -73,8 +73,10 @@ class Maps:
     in_front : bool
         Whether the object is partly behind something: a piece the occlusion
         rule took for covered has colours its surroundings lack
-        (:func:`engine.tracking.occlusion.foreign`).  Judged only for a
-        prediction bent by the flow (to a rigid one it makes no difference).
+        (:func:`engine.tracking.occlusion.foreign`).  Judged only when
+        :attr:`~engine.tracking.options.TrackerOptions.rigid_behind` is on,
+        for a prediction bent by the flow (to a rigid one it makes no
+        difference).
     """
 
     origin: tuple[int, int]

@@ -188,7 +188,9 @@ class Tracker:
         self.appearance: AppearanceModel = appearance or ColourHistogram(
             opts.band, opts.learning_rate, opts.far_background
         )
-        self.cues: BoundaryCues = cues or RegionEdgeCues(opts.search_radius, opts.occlusion)
+        self.cues: BoundaryCues = cues or RegionEdgeCues(
+            opts.search_radius, opts.occlusion, opts.rigid_behind
+        )
         self.segmentation: Segmentation = segmentation or BandCut(opts.cut_band)
         for name, stage, kind in (
             ("motion", self.motion, MotionModel),
@@ -412,7 +414,7 @@ class Tracker:
         (:mod:`engine.tracking.shape_memory`).
         """
         maps = cues.maps(image, grey, prediction, self.appearance)
-        if maps.in_front and self.options.rigid_behind:
+        if maps.in_front:
             # partly behind something: the flow next to it is the front object's
             prediction = dataclasses.replace(prediction, nodes=prediction.rigid)
         guide = maps

@@ -116,3 +116,20 @@ def test_a_bar_sweeping_across_the_object_does_not_drag_the_contour_along() -> N
     """
     assert _mean_iou(rigid_behind=True) >= 0.95
     assert _mean_iou(rigid_behind=False) < 0.8
+
+
+def test_with_the_option_off_no_colours_are_judged(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rigid_behind=False`` is the tracker before it: not even the test runs."""
+    import engine.tracking.occlusion as occlusion
+
+    def judged(*_: object) -> bool:
+        raise AssertionError("the covered pieces were judged")
+
+    monkeypatch.setattr(occlusion, "foreign", judged)
+    clip = make_sequence("occluder", seed=4, length=12)
+    tracker = Tracker(mask_to_contour(clip.masks[0], 64), rigid_behind=False)
+    for frame in clip.frames:
+        tracker.step(frame)
+    tracker = Tracker(mask_to_contour(clip.masks[0], 64))  # on: judged once the bar is in
+    with pytest.raises(AssertionError, match="judged"):
+        _ = [tracker.step(frame) for frame in clip.frames]
