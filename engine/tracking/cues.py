@@ -46,12 +46,19 @@ class RegionEdgeCues:
         colours (:func:`engine.tracking.occlusion.foreign`), setting the maps'
         ``in_front`` (for a prediction bent by the flow: to a rigid one it makes
         no difference).
+    reveal : bool, default False
+        :attr:`TrackerOptions.revealed_background`: covered pieces with the
+        colours of the object's surroundings are background it uncovered, not
+        covered (:func:`engine.tracking.occlusion.unoccluded`).
     """
 
-    def __init__(self, search_radius: int, occlusion: bool, judge_front: bool = False) -> None:
+    def __init__(
+        self, search_radius: int, occlusion: bool, judge_front: bool = False, reveal: bool = False
+    ) -> None:
         self.search_radius = search_radius
         self.occlusion = occlusion
         self.judge_front = judge_front
+        self.reveal = reveal
         # p(object) as 0-255 around the contour in the last frame, and its origin
         self._memory: LocatedProbability | None = None
 
@@ -74,8 +81,11 @@ class RegionEdgeCues:
             silhouette = (prediction.matrix, prediction.rigid)
             # what is in front matters only to a prediction bent by the flow
             bent = not np.array_equal(prediction.nodes, prediction.rigid)
-            judge = image if self.judge_front and bent else None
-            maps, remembered = unoccluded(maps, self._memory, silhouette, judge)
+            front = self.judge_front and bent
+            judge = image if front or self.reveal else None
+            maps, remembered = unoccluded(
+                maps, self._memory, silhouette, judge, front=front, reveal=self.reveal
+            )
         self._memory = remembered.origin, _as_bytes(remembered.probability)
         return maps
 
@@ -112,7 +122,7 @@ class RegionEdgeCues:
     def from_state(self, state: Mapping[str, Any]) -> Self:
         """These cues holding ``state`` (of :meth:`to_state` or :meth:`to_compact_state`)."""
         check_kind(state, KIND, "cues")
-        restored = type(self)(self.search_radius, self.occlusion, self.judge_front)
+        restored = type(self)(self.search_radius, self.occlusion, self.judge_front, self.reveal)
         memory = state.get("memory")
         if memory is not None:
             x, y = (int(v) for v in memory["origin"])

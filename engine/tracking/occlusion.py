@@ -12,7 +12,11 @@ were the object's and look like background now.  Their colours can, often: what
 a limb uncovers is the background around the object, while a pole or a bar in
 front usually has colours that ring shows little of.  Such a *foreign* piece
 sets :attr:`~engine.tracking.maps.Maps.in_front`: the object is partly behind
-something, and its dense flow next to it is the front object's.
+something, and its dense flow next to it is the front object's.  A piece whose
+colours *are* the ring's is background the object uncovered (a gap opening
+between limbs): it is not covered at all, and its colours count as they are
+(:func:`piece_overlaps`, :data:`REVEALED_FROM`).  Made neutral, it would stay
+the object's, and the contour would bridge the gap for as long as it lasts.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from numpy.typing import NDArray
 from engine.geometry import contour_to_mask
 from engine.tracking.maps import Maps
 
-__all__ = ["LocatedProbability", "Silhouette", "foreign", "unoccluded"]
+__all__ = ["LocatedProbability", "Silhouette", "foreign", "piece_overlaps", "unoccluded"]
 
 LocatedProbability: TypeAlias = tuple[tuple[int, int], NDArray[np.uint8]]
 """p(object) as 0-255 over a region of a frame, with the region's ``(x, y)`` origin."""
@@ -50,6 +54,13 @@ FOREIGN_BELOW = 0.25
 below 0.25.  Measured on the synthetic conditions: a bar in front scores 0-0.16,
 the background uncovered between an articulated figure's limbs a median of 0.75
 (0.39 at its 10th percentile)."""
+REVEALED_FROM = 0.4
+"""A covered piece is background the object uncovered when its colour histogram and
+the ring's intersect at 0.4 or more: about the 10th percentile of the gaps between an
+articulated figure's limbs (0.39), well clear of a bar in front (0-0.16).  Pieces in
+between stay covered, as the rule found them.  Cross-validated on the thirty training
+sequences over 0.25, 0.33, 0.4, 0.45, 0.5 and 0.65 (five node counts): 0.4 was chosen
+in four folds of five (docs/tracking-log.md, "Background the object uncovered")."""
 RING = 8
 """Width in pixels of the ring outside the moved contour whose colours stand for
 the object's surroundings (the colour model's own ring is wider: this one is what
@@ -70,6 +81,9 @@ def unoccluded(
     previous: LocatedProbability | None,
     silhouette: Silhouette,
     image: NDArray[np.uint8] | None = None,
+    *,
+    front: bool = True,
+    reveal: bool = True,
 ) -> tuple[Maps, Maps]:
     """Colour evidence with occluders made neutral (p = 0.5).
 
@@ -87,8 +101,13 @@ def unoccluded(
     image : numpy.ndarray, optional
         The frame the maps were made from (H x W x 3 BGR or H x W uint8):
         given it, the covered pieces are judged by their colours
-        (:func:`foreign`) and the first map's ``in_front`` says whether one
-        is foreign.
+        (:func:`piece_overlaps`); without it, every covered pixel stays so.
+    front : bool, default True
+        Given ``image``: set the first map's ``in_front`` when a piece is
+        foreign (:func:`foreign`).
+    reveal : bool, default True
+        Given ``image``: a piece whose colours are the surroundings' (from
+        :data:`REVEALED_FROM`) is background the object uncovered, not covered.
 
     Returns
     -------
@@ -126,17 +145,24 @@ def unoccluded(
         BACKGROUND_BELOW,
         OBJECT_ABOVE,
     )
+    in_front = False
+    if image is not None and (front or reveal) and len(where) >= MIN_PIECE:
+        covered = np.zeros((h, w), np.bool_)
+        covered.reshape(-1)[where] = True
+        labels, overlaps = piece_overlaps(
+            image, (ox, oy), covered, silhouette_mask.astype(np.bool_)
+        )
+        in_front = front and bool(np.any(overlaps < FOREIGN_BELOW))
+        if reveal and np.any(overlaps >= REVEALED_FROM):
+            seen = np.concatenate([[False], overlaps >= REVEALED_FROM])
+            kept = ~seen[labels.reshape(-1)[where]]
+            where, was = where[kept], was[kept]
     if len(where) == 0:
         return maps, maps
     prob = maps.probability.copy()
     prob.reshape(-1)[where] = NEUTRAL  # a view of the copy: faster than .flat
     memory = maps.probability.copy()
     memory.reshape(-1)[where] = was
-    front = False
-    if image is not None:
-        covered = np.zeros((h, w), np.bool_)
-        covered.reshape(-1)[where] = True
-        front = foreign(image, (ox, oy), covered, silhouette_mask.astype(np.bool_))
     return (
         Maps(
             maps.origin,
@@ -144,7 +170,7 @@ def unoccluded(
             maps.edges,
             maps.edge_step,
             observed=maps.probability,
-            in_front=front,
+            in_front=in_front,
         ),
         Maps(maps.origin, memory, maps.edges, maps.edge_step),
     )
@@ -157,6 +183,31 @@ def foreign(
     silhouette: NDArray[np.bool_],
 ) -> bool:
     """Whether a covered piece has colours the object's surroundings lack.
+
+    Parameters are those of :func:`piece_overlaps`.
+
+    Returns
+    -------
+    bool
+        True when a piece's colours meet the ring's below :data:`FOREIGN_BELOW`;
+        False when no piece is foreign or none is judged.
+
+    Raises
+    ------
+    ValueError
+        As :func:`piece_overlaps`.
+    """
+    _, overlaps = piece_overlaps(image, origin, covered, silhouette)
+    return bool(np.any(overlaps < FOREIGN_BELOW))
+
+
+def piece_overlaps(
+    image: NDArray[np.uint8],
+    origin: tuple[int, int],
+    covered: NDArray[np.bool_],
+    silhouette: NDArray[np.bool_],
+) -> tuple[NDArray[np.int32], NDArray[np.float64]]:
+    """How much each covered piece's colours are those of the object's surroundings.
 
     Parameters
     ----------
@@ -171,14 +222,16 @@ def foreign(
 
     Returns
     -------
-    bool
-        True when a connected piece of ``covered`` of at least
-        :data:`MIN_PIECE` pixels has a colour histogram (3 bits a channel)
-        whose intersection with that of the ring :data:`RING` pixels wide
-        outside ``silhouette`` (covered pixels left out) is below
-        :data:`FOREIGN_BELOW`; False when no piece is foreign or the ring is
-        empty.  The ring is sampled on every :data:`RING_STEP`-th pixel of
-        every :data:`RING_STEP`-th row.
+    labels : numpy.ndarray
+        h x w int32: 0, or the number (from 1) of the judged piece a pixel is in:
+        an 8-connected piece of ``covered`` of at least :data:`MIN_PIECE` pixels.
+    overlaps : numpy.ndarray
+        Per judged piece, in label order, the intersection of its colour histogram
+        (3 bits a channel) with that of the ring :data:`RING` pixels wide outside
+        ``silhouette`` (covered pixels left out, sampled on every
+        :data:`RING_STEP`-th pixel of every :data:`RING_STEP`-th row): 0 for
+        colours the ring never shows, 1 for the ring's own.  Empty when no piece
+        is large enough or the ring is empty.
 
     Raises
     ------
@@ -196,20 +249,24 @@ def foreign(
             f"covered {covered.shape} and silhouette {silhouette.shape} must be one region "
             f"inside the image {image.shape[:2]}; the region's origin is {(x, y)}"
         )
+    labels = np.zeros((h, w), np.int32)
+    none = np.zeros(0, np.float64)
     if np.count_nonzero(covered) < MIN_PIECE:
-        return False
+        return labels, none
     pixels = np.ascontiguousarray(image if image.ndim == 3 else image[:, :, None])
     # the pieces, at full resolution within the covered pixels' box
     rows_hit = np.flatnonzero(covered.any(axis=1))
     cols_hit = np.flatnonzero(covered.any(axis=0))
-    top, left = int(rows_hit[0]), int(cols_hit[0])
-    box = covered[top : int(rows_hit[-1]) + 1, left : int(cols_hit[-1]) + 1]
-    count, found = cv2.connectedComponents(box.astype(np.uint8), connectivity=8)
-    labels = np.asarray(found, np.int32)
+    top, bottom = int(rows_hit[0]), int(rows_hit[-1]) + 1
+    left, right = int(cols_hit[0]), int(cols_hit[-1]) + 1
+    count, found = cv2.connectedComponents(
+        covered[top:bottom, left:right].astype(np.uint8), connectivity=8
+    )
+    box = np.asarray(found, np.int32)
     at = (x + left, y + top)
-    counts, sizes = label_histograms(pixels, at, labels, count, MIN_PIECE, COLOUR_BITS)
+    counts, sizes = label_histograms(pixels, at, box, count, MIN_PIECE, COLOUR_BITS)
     if len(sizes) == 0:
-        return False
+        return labels, none
     # the ring, sampled
     step = RING_STEP
     inside = np.ascontiguousarray(silhouette[::step, ::step], np.uint8)
@@ -218,7 +275,13 @@ def foreign(
     left_out = np.ascontiguousarray(covered[::step, ::step], np.uint8)
     ring = ring_histogram(pixels, (x, y), step, wide, inside, left_out, COLOUR_BITS)
     if ring.sum() == 0:
-        return False
+        return labels, none
     around = ring / ring.sum()
-    pieces = counts / sizes[:, None]
-    return bool(np.any(np.minimum(pieces, around).sum(axis=1) < FOREIGN_BELOW))
+    overlaps = np.minimum(counts / sizes[:, None], around).sum(axis=1)
+    # the judged pieces renumbered 1, 2, ... in label order (the kernel's row order)
+    judged = np.bincount(box.ravel(), minlength=count) >= MIN_PIECE
+    judged[0] = False
+    renumber = np.zeros(count, np.int32)
+    renumber[judged] = np.arange(1, len(sizes) + 1, dtype=np.int32)
+    labels[top:bottom, left:right] = renumber[box]
+    return labels, np.asarray(overlaps, np.float64)

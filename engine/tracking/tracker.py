@@ -189,7 +189,7 @@ class Tracker:
             opts.band, opts.learning_rate, opts.far_background
         )
         self.cues: BoundaryCues = cues or RegionEdgeCues(
-            opts.search_radius, opts.occlusion, opts.rigid_behind
+            opts.search_radius, opts.occlusion, opts.rigid_behind, opts.revealed_background
         )
         self.segmentation: Segmentation = segmentation or BandCut(opts.cut_band)
         for name, stage, kind in (

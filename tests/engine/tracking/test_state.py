@@ -118,6 +118,17 @@ def test_rigid_behind_is_kept_through_a_state_and_read_as_off_when_missing(
     assert Tracker.from_state(state).options.rigid_behind is False
 
 
+def test_revealed_background_is_kept_through_a_state_and_read_as_off_when_missing(
+    frames: list[U8],
+) -> None:
+    tracker = Tracker(initial(), revealed_background=True)
+    run(tracker, frames[:3])
+    state = through_json(tracker.to_state())
+    assert Tracker.from_state(state).options.revealed_background is True
+    del state["options"]["revealed_background"]  # written before the option
+    assert Tracker.from_state(state).options.revealed_background is False
+
+
 def test_state_without_frame_reinitialises_on_the_next_frame(frames: list[U8]) -> None:
     tracker = Tracker(initial())
     run(tracker, frames[:5])
@@ -281,6 +292,7 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
         lighting=False,
         far_background=0.0,
         rigid_behind=False,
+        revealed_background=False,
     )
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])

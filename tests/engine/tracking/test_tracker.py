@@ -393,6 +393,8 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("far_background", "all"),
     ("rigid_behind", 1),
     ("rigid_behind", "yes"),
+    ("revealed_background", 0),
+    ("revealed_background", None),
 ]
 
 
