@@ -199,8 +199,8 @@ def test_a_contour_with_nothing_object_like_inside_is_not_tracking() -> None:
     assert model > TRACKING_FROM
     assert calibrated(dim) == UNCONFIRMED
     assert calibrated(Evidence(inside=EMPTY_BELOW, outside=0.0, settled=True)) > TRACKING_FROM
-    # below the cap the model's own value stands
-    lost = Evidence(inside=0.05, outside=0.6, settled=False)
+    # below the cap the model's own value stands: background inside, the object all round
+    lost = Evidence(inside=0.05, outside=0.9, settled=False)
     assert calibrated(lost) < LOST_BELOW
 
 
