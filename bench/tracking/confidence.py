@@ -39,7 +39,7 @@ from scipy.optimize import minimize
 from bench.common.data import davis_names
 from bench.common.study import on_two_processes, study_main
 from bench.tracking.cv import make_folds
-from engine.tracking.confidence import EMPTY_BELOW, SEPARATION_BELOW
+from engine.tracking.confidence import EMPTY_BELOW, SEPARATION_BELOW, TYPICAL_LOOK
 
 NODE_COUNTS = (112, 120, 128, 136, 144)
 """The cross-validation's node counts: every frame of each counts once."""
@@ -57,7 +57,7 @@ GOOD_FROM, BAD_BELOW = 0.6, 0.2
 """The issue's overlaps: frames that should be ``tracking``, and frames that should not."""
 GOOD_GOAL, BAD_GOAL = 95.0, 80.0
 """The issue's goals (%): good frames reported ``tracking``, bad ones not."""
-FEATURES = 7
+FEATURES = 9
 """Inputs of the model, in :data:`engine.tracking.confidence.COEFFICIENTS` order (after
 its bias): a row is these, then the frame's kind, reported confidence and IoU."""
 UNSEEN, CAPPED, PLAIN = 0, 1, 2
@@ -93,7 +93,9 @@ def _sequence(job: tuple[str, str, str, int]) -> dict[str, Any]:
         if kind == PLAIN and result.confidence < calibrated(e):
             kind = CAPPED  # on probation (calibrated has its own cap, applied in reported)
         features = [e.inside, e.outside, e.settled, e.motion_inside, e.motion_outside]
-        features += [e.motion_seen, e.shape]
+        usual_in = TYPICAL_LOOK[0] if e.usual_inside is None else e.usual_inside
+        usual_out = TYPICAL_LOOK[1] if e.usual_outside is None else e.usual_outside
+        features += [e.motion_seen, e.shape, e.inside - usual_in, e.outside - usual_out]
         rows.append([*map(float, features), kind, result.confidence, iou])
     return {"set": label, "name": name, "nodes": nodes, "rows": rows}
 

@@ -6,7 +6,7 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import as_nodes
 from engine.tracking._state_codec import count, factors
+from engine.tracking.confidence import USUAL_FRAMES
 
 __all__ = ["Memory"]
 
@@ -37,6 +38,13 @@ class Memory:
     outline : numpy.ndarray or None
         (M, 2) ``[x, y]`` the first frame's contour where it is now
         (:mod:`~engine.tracking.shape_memory`); None: no shape memory.
+    usual : numpy.ndarray
+        (2,) mean p(object) inside the contour and in the ring outside it over the
+        track's first :data:`~engine.tracking.confidence.USUAL_FRAMES` tracked
+        frames: how this object looks against its surroundings
+        (:class:`~engine.tracking.confidence.Evidence`).
+    usual_count : int
+        Frames counted in ``usual`` so far.
     """
 
     misses: int
@@ -44,33 +52,61 @@ class Memory:
     shape: NDArray[np.float64]
     hold: NDArray[np.float64]
     outline: NDArray[np.float64] | None = None
+    usual: NDArray[np.float64] = field(default_factory=lambda: np.zeros(2))
+    usual_count: int = 0
 
     @classmethod
     def fresh(cls, nodes: NDArray[np.float64]) -> Memory:
         """Nothing missed, the given contour as the shape, no node held, no outline."""
         return cls(0, 0, nodes, np.zeros(len(nodes)))
 
+    def usual_with(self, inside: float, outside: float) -> tuple[float, float]:
+        """``usual`` with a frame of mean p(object) ``inside`` and ``outside`` counted in,
+        while fewer than :data:`~engine.tracking.confidence.USUAL_FRAMES` are."""
+        n = self.usual_count
+        if n >= USUAL_FRAMES:
+            return float(self.usual[0]), float(self.usual[1])
+        return (self.usual[0] * n + inside) / (n + 1), (self.usual[1] * n + outside) / (n + 1)
+
+    def learn_usual(self, inside: float, outside: float) -> None:
+        """Count a tracked frame in ``usual`` (:meth:`usual_with`)."""
+        if self.usual_count < USUAL_FRAMES:
+            self.usual = np.array(self.usual_with(inside, outside), np.float64)
+            self.usual_count += 1
+
     def to_state(self) -> dict[str, Any]:
-        """``{"misses", "probation", "shape", "hold", "outline"}``, JSON-able."""
+        """``{"misses", "probation", "shape", "hold", "outline", "usual"}``, JSON-able
+        (``"usual"``: ``[inside, outside, frames counted]``)."""
         return {
             "misses": self.misses,
             "probation": self.probation,
             "shape": self.shape.tolist(),
             "hold": self.hold.tolist(),
             "outline": None if self.outline is None else self.outline.tolist(),
+            "usual": [float(self.usual[0]), float(self.usual[1]), self.usual_count],
         }
 
     @classmethod
     def from_state(cls, state: Mapping[str, Any], nodes: int) -> Memory:
         """Inverse of :meth:`to_state` for a contour of ``nodes`` nodes; ValueError if malformed.
 
-        A state without ``"outline"`` (written before the shape memory) has none.
+        A state without ``"outline"`` (written before the shape memory) has none; one
+        without ``"usual"`` (written before it) counts the usual look from its next frames.
         """
         outline = state.get("outline")
+        usual = state.get("usual", [0.0, 0.0, 0])
+        if not isinstance(usual, list | tuple) or len(usual) != 3:
+            raise ValueError(f"usual must be [inside, outside, frames]; got {usual!r}")
+        means = factors(usual[:2], 2)
+        frames = count(usual[2])
+        if frames > USUAL_FRAMES:
+            raise ValueError(f"usual counts at most {USUAL_FRAMES} frames; got {frames}")
         return cls(
             count(state["misses"]),
             count(state["probation"]),
             as_nodes(state["shape"]),
             factors(state["hold"], nodes),
             None if outline is None else as_nodes(outline),
+            means,
+            frames,
         )

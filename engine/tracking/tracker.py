@@ -387,6 +387,8 @@ class Tracker:
         signal = support + (1 - MOTION_SHARE) * refinement.contrast
         if not visible:
             signal = confidence = 0.0
+        else:  # how the object usually looks, from the track's first frames
+            memory.learn_usual(attempt.evidence.inside, attempt.evidence.outside)
         self._nodes = nodes
         self._previous = grey
         if self.options.lighting:
@@ -450,6 +452,8 @@ class Tracker:
         if cut is not None and valid_contour(cut, grey.shape, self._nodes):
             nodes = cut
         found = evidence(maps, nodes, refinement.converged, self._memory.outline)
+        usual_in, usual_out = self._memory.usual_with(found.inside, found.outside)
+        found = dataclasses.replace(found, usual_inside=usual_in, usual_outside=usual_out)
         return _Attempt(refinement, nodes, found, calibrated(found), search_score(found))
 
     def _search(

@@ -15,26 +15,30 @@ from engine.tracking.confidence import (
     COEFFICIENTS,
     EMPTY_BELOW,
     SEPARATION_BELOW,
+    TYPICAL_LOOK,
     Evidence,
     calibrated,
 )
 
-MODEL = np.array([-2.8308, 2.4357, -2.6591, 0.1746, 0.1711, 0.1096, 0.5432, 2.8508])
-"""A model of the shipped form (the one shipped on 2026-11-27, evening), fixed here so
-that the generated frames do not move with each refit of :data:`COEFFICIENTS`."""
+MODEL = np.array([-2.8308, 2.4357, -2.6591, 0.1746, 0.1711, 0.1096, 0.5432, 2.8508, 0.0, 0.0])
+"""A model of the shipped form (the one shipped on 2026-11-27, evening, with no weight on
+the change from the usual look), fixed here so that the generated frames do not move
+with each refit of :data:`COEFFICIENTS`."""
 CAP = 0.494
 """The most a contour with nothing telling it from its surroundings got under it."""
 
 
 def frames(count: int, seed: int, shift: float = 0.0) -> list[list[float]]:
-    """Rows whose IoU follows :data:`MODEL` of their evidence (plus ``shift``)."""
+    """Rows whose IoU follows :data:`MODEL` of their evidence (plus ``shift``), each frame
+    at its usual look."""
     rng = np.random.default_rng(seed)
     rows = []
     for _ in range(count):
         inside, outside = rng.uniform(0.0, 1.0, 2)
         shape = rng.uniform(0.3, 1.0)
         settled = float(rng.integers(2))
-        features = [inside, outside, settled, 0.0, 0.0, 0.0, shape]
+        # each frame as its object usually looks: no change from the usual look
+        features = [inside, outside, settled, 0.0, 0.0, 0.0, shape, 0.0, 0.0]
         value = 1.0 / (1.0 + np.exp(-(MODEL[0] + MODEL[1:] @ np.array(features))))
         if inside < EMPTY_BELOW or inside - outside < SEPARATION_BELOW:
             value = min(value, CAP)
@@ -100,13 +104,17 @@ def test_the_share_is_chosen_on_held_out_sequences() -> None:
 
 def test_reported_confidences_are_capped_and_zeroed_as_the_tracker_does() -> None:
     w = np.array(COEFFICIENTS)
-    features = np.array([[0.9, 0.1, 1.0, 0.0, 0.0, 0.0, 1.0]] * 3)
+    change = [0.9 - TYPICAL_LOOK[0], 0.1 - TYPICAL_LOOK[1]]  # no usual look: the typical
+    features = np.array([[0.9, 0.1, 1.0, 0.0, 0.0, 0.0, 1.0, *change]] * 3)
     kind = np.array([bench.PLAIN, bench.CAPPED, bench.UNSEEN])
     conf = bench.reported(w, features, kind, 0.48)
     assert conf[0] == pytest.approx(calibrated(Evidence(0.9, 0.1, True)))
     assert conf[1] == pytest.approx(0.479)
     assert conf[2] == 0.0
-    empty = np.array([[0.05, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]])
+    empty = np.array(
+        [[0.05, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.05 - TYPICAL_LOOK[0], -TYPICAL_LOOK[1]]]
+    )
+    assert bench.reported(w, empty, np.array([bench.PLAIN]), 1.0)[0] > 0.48  # the model alone
     assert bench.reported(w, empty, np.array([bench.PLAIN]), 0.48)[0] == pytest.approx(0.479)
 
 

@@ -13,6 +13,7 @@ from engine.tracking.confidence import (
     LOST_BELOW,
     SEPARATION_BELOW,
     TRACKING_FROM,
+    TYPICAL_LOOK,
     UNCONFIRMED,
     Evidence,
     calibrated,
@@ -23,9 +24,28 @@ from engine.tracking.confidence import (
 from engine.tracking.maps import Maps
 from engine.tracking.tracker import Tracker
 from tests.engine.scenes import DiscScene
-from tests.engine.tracking.moving_disc import H, R, W, initial, run
+from tests.engine.tracking.moving_disc import H, R, W, centre, initial, run
 
 U8 = NDArray[np.uint8]
+
+
+def _uncapped(e: Evidence) -> float:
+    """The logistic model alone, written out from :data:`COEFFICIENTS`."""
+    usual_in = TYPICAL_LOOK[0] if e.usual_inside is None else e.usual_inside
+    usual_out = TYPICAL_LOOK[1] if e.usual_outside is None else e.usual_outside
+    inputs = [
+        1.0,
+        e.inside,
+        e.outside,
+        float(e.settled),
+        e.motion_inside,
+        e.motion_outside,
+        float(e.motion_seen),
+        e.shape,
+        e.inside - usual_in,
+        e.outside - usual_out,
+    ]
+    return float(1.0 / (1.0 + np.exp(-np.dot(COEFFICIENTS, inputs))))
 
 
 def disc_maps(origin: tuple[int, int] = (0, 0)) -> Maps:
@@ -187,6 +207,41 @@ def test_the_tracker_shows_the_evidence_behind_its_confidence(frames: list[U8]) 
     assert tracker.evidence is None
 
 
+def test_the_ring_is_read_against_how_it_usually_looks() -> None:
+    """A ring as object-like as a banner of the rider's colours, round a contour half of
+    the first frame's shape: lost when the ring was clear at the start, the object among
+    its own colours when it always looked so."""
+    slid = Evidence(0.85, 0.47, False, shape=0.5, usual_inside=0.85, usual_outside=0.2)
+    always = Evidence(0.85, 0.47, False, shape=0.5, usual_inside=0.85, usual_outside=0.47)
+    assert calibrated(slid) < TRACKING_FROM <= calibrated(always)
+    assert calibrated(slid) == pytest.approx(_uncapped(slid))
+    # not known: the thirty's typical look
+    typical = Evidence(
+        0.85, 0.47, False, usual_inside=TYPICAL_LOOK[0], usual_outside=TYPICAL_LOOK[1]
+    )
+    assert calibrated(Evidence(0.85, 0.47, False)) == calibrated(typical)
+
+
+def test_the_usual_look_is_learnt_from_the_first_frames_of_a_track() -> None:
+    from engine.tracking.confidence import USUAL_FRAMES
+
+    scene = DiscScene(W, H, R)
+    tracker = Tracker(initial())
+    frames = [scene.frame(centre(k)) for k in range(USUAL_FRAMES + 4)]
+    seen = []
+    for frame in frames:
+        tracker.step(frame)
+        if tracker.evidence is not None:
+            seen.append((tracker.evidence.inside, tracker.evidence.outside))
+            usual_in, usual_out = tracker.evidence.usual_inside, tracker.evidence.usual_outside
+            assert usual_in is not None
+            assert usual_out is not None
+            count = min(len(seen), USUAL_FRAMES)
+            mean = np.mean(seen[:count], axis=0)
+            np.testing.assert_allclose([usual_in, usual_out], mean, rtol=1e-12)
+    assert len(seen) > USUAL_FRAMES
+
+
 def test_a_contour_with_nothing_object_like_inside_is_not_tracking() -> None:
     # left on an occluder that hides the whole object: nothing around it either
     empty = Evidence(inside=0.05, outside=0.0, settled=True)
@@ -194,9 +249,7 @@ def test_a_contour_with_nothing_object_like_inside_is_not_tracking() -> None:
     assert status_of(calibrated(empty)) == "uncertain"
     # a dim inside the linear model alone would call tracking: the cap holds it below
     dim = Evidence(inside=EMPTY_BELOW - 0.05, outside=0.0, settled=True)
-    logit = COEFFICIENTS[0] + COEFFICIENTS[1] * dim.inside + COEFFICIENTS[3] + COEFFICIENTS[7]
-    model = 1.0 / (1.0 + np.exp(-logit))
-    assert model > TRACKING_FROM
+    assert _uncapped(dim) > TRACKING_FROM
     assert calibrated(dim) == UNCONFIRMED
     assert calibrated(Evidence(inside=EMPTY_BELOW, outside=0.0, settled=True)) > TRACKING_FROM
     # below the cap the model's own value stands: background inside, the object all round
@@ -207,9 +260,7 @@ def test_a_contour_with_nothing_object_like_inside_is_not_tracking() -> None:
 def test_a_contour_that_nothing_tells_from_its_surroundings_is_not_tracking() -> None:
     # no colour known (a black frame): the chain kept the shape, but nothing else is seen
     unknown = Evidence(inside=0.5, outside=0.5, settled=True, shape=1.0)
-    logit = COEFFICIENTS[0] + 0.5 * (COEFFICIENTS[1] + COEFFICIENTS[2])
-    model = 1.0 / (1.0 + np.exp(-(logit + COEFFICIENTS[3] + COEFFICIENTS[7])))
-    assert model > TRACKING_FROM  # the linear model alone would call it tracking
+    assert _uncapped(unknown) > TRACKING_FROM  # the linear model alone would call it tracking
     assert calibrated(unknown) == UNCONFIRMED
     edge = 0.3 + SEPARATION_BELOW
     assert calibrated(Evidence(inside=edge - 0.01, outside=0.3, settled=True)) == UNCONFIRMED

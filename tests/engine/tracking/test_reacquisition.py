@@ -101,6 +101,11 @@ def test_a_state_taken_mid_search_resumes_exactly() -> None:
         ("hold", [0.5]),
         ("hold", [2.0] * 128),
         ("hold", "all"),
+        ("usual", [0.8, 0.2]),
+        ("usual", [0.8, 1.5, 3]),
+        ("usual", [0.8, 0.2, 11]),
+        ("usual", [0.8, 0.2, -1]),
+        ("usual", "typical"),
     ],
 )
 def test_a_malformed_search_state_is_refused(key: str, value: object) -> None:
