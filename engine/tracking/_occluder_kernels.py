@@ -52,13 +52,14 @@ def label_histograms(
     count: int,
     least: int,
     bits: int,
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int32]]:
     """Colour counts of the labelled pieces of at least ``least`` pixels.
 
     ``labels[i, j]`` (0: no piece, else 1 to ``count - 1``) labels pixel
     ``(origin[1] + i, origin[0] + j)`` of ``image`` (H x W x 1 grey or H x W x 3
     BGR, binned at ``bits`` a channel).  Returns a row of counts for each piece
-    so large, in label order, and their sizes.
+    so large, in label order, their sizes, and ``labels`` renumbered: 1, 2, ...
+    for those pieces in that order, 0 for the others.
     """
     ox, oy = origin
     h, w = labels.shape
@@ -81,6 +82,7 @@ def label_histograms(
     bins = 1 << bits if image.shape[2] == 1 else 1 << (3 * bits)
     out = np.zeros((large, bins), np.int64)
     kept = np.zeros(large, np.int64)
+    judged = np.zeros((h, w), np.int32)
     for k in range(1, count):
         if rows[k] > 0:
             kept[rows[k] - 1] = sizes[k]
@@ -89,4 +91,5 @@ def label_histograms(
         row = rows[labels[i, j]]
         if row > 0:
             out[row - 1, pixel_bin(image, oy + i, ox + j, bits, bits)] += 1
-    return out, kept
+            judged[i, j] = row
+    return out, kept, judged

@@ -264,7 +264,7 @@ def piece_overlaps(
     )
     box = np.asarray(found, np.int32)
     at = (x + left, y + top)
-    counts, sizes = label_histograms(pixels, at, box, count, MIN_PIECE, COLOUR_BITS)
+    counts, sizes, judged = label_histograms(pixels, at, box, count, MIN_PIECE, COLOUR_BITS)
     if len(sizes) == 0:
         return labels, none
     # the ring, sampled
@@ -278,10 +278,5 @@ def piece_overlaps(
         return labels, none
     around = ring / ring.sum()
     overlaps = np.minimum(counts / sizes[:, None], around).sum(axis=1)
-    # the judged pieces renumbered 1, 2, ... in label order (the kernel's row order)
-    judged = np.bincount(box.ravel(), minlength=count) >= MIN_PIECE
-    judged[0] = False
-    renumber = np.zeros(count, np.int32)
-    renumber[judged] = np.arange(1, len(sizes) + 1, dtype=np.int32)
-    labels[top:bottom, left:right] = renumber[box]
+    labels[top:bottom, left:right] = judged
     return labels, np.asarray(overlaps, np.float64)
