@@ -163,7 +163,7 @@ class TrackerOptions:
         Default True: neutral, the gap stayed the object's and the contour
         bridged it for as long as it lasted.  Cross-validated on the thirty
         training sequences over five node counts: chosen in all five folds, J
-        0.729 against 0.717 (every fold gains 0.010 to 0.017).  It cost lost
+        0.729 against 0.717 (held out, four folds of five gain).  It cost lost
         detection on sequences the confidence model was not fitted on (see
         :data:`engine.tracking.confidence.TRACKING_FROM`).
 
