@@ -107,26 +107,17 @@ def test_far_background_is_kept_through_a_state_and_read_as_off_when_missing(
     assert Tracker.from_state(state).options.far_background == 0.0
 
 
-def test_rigid_behind_is_kept_through_a_state_and_read_as_off_when_missing(
-    frames: list[U8],
+@pytest.mark.parametrize("option", ["rigid_behind", "revealed_background"])
+def test_an_occlusion_option_is_kept_through_a_state_and_read_as_off_when_missing(
+    option: str, frames: list[U8]
 ) -> None:
-    tracker = Tracker(initial(), rigid_behind=True)
+    on: dict[str, Any] = {option: True}
+    tracker = Tracker(initial(), **on)
     run(tracker, frames[:3])
     state = through_json(tracker.to_state())
-    assert Tracker.from_state(state).options.rigid_behind is True
-    del state["options"]["rigid_behind"]  # written before the option
-    assert Tracker.from_state(state).options.rigid_behind is False
-
-
-def test_revealed_background_is_kept_through_a_state_and_read_as_off_when_missing(
-    frames: list[U8],
-) -> None:
-    tracker = Tracker(initial(), revealed_background=True)
-    run(tracker, frames[:3])
-    state = through_json(tracker.to_state())
-    assert Tracker.from_state(state).options.revealed_background is True
-    del state["options"]["revealed_background"]  # written before the option
-    assert Tracker.from_state(state).options.revealed_background is False
+    assert getattr(Tracker.from_state(state).options, option) is True
+    del state["options"][option]  # written before the option
+    assert getattr(Tracker.from_state(state).options, option) is False
 
 
 def test_state_without_frame_reinitialises_on_the_next_frame(frames: list[U8]) -> None:
