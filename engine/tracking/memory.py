@@ -57,7 +57,8 @@ class Memory:
 
     @classmethod
     def fresh(cls, nodes: NDArray[np.float64]) -> Memory:
-        """Nothing missed, the given contour as the shape, no node held, no outline."""
+        """Nothing missed, the given contour as the shape, no node held, no outline, no
+        usual look yet."""
         return cls(0, 0, nodes, np.zeros(len(nodes)))
 
     def usual_with(self, inside: float, outside: float) -> tuple[float, float]:

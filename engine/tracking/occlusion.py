@@ -117,7 +117,8 @@ def unoccluded(
     remember : Maps
         ``maps`` with the covered pixels at their previous p(object) (the
         object goes on under the occluder), for the next frame.
-        Both are ``maps`` itself when no pixel is covered.
+        Both are ``maps`` itself when no pixel is covered (or every covered
+        piece is background the object uncovered).
     """
     from engine.tracking._image_kernels import occluded
 
