@@ -39,7 +39,7 @@ from scipy.optimize import minimize
 from bench.common.data import davis_names
 from bench.common.study import on_two_processes, study_main
 from bench.tracking.cv import make_folds
-from engine.tracking.confidence import EMPTY_BELOW, SEPARATION_BELOW, TYPICAL_LOOK
+from engine.tracking.confidence import EMPTY_BELOW, SEPARATION_BELOW
 
 NODE_COUNTS = (112, 120, 128, 136, 144)
 """The cross-validation's node counts: every frame of each counts once."""
@@ -93,9 +93,7 @@ def _sequence(job: tuple[str, str, str, int]) -> dict[str, Any]:
         if kind == PLAIN and result.confidence < calibrated(e):
             kind = CAPPED  # on probation (calibrated has its own cap, applied in reported)
         features = [e.inside, e.outside, e.settled, e.motion_inside, e.motion_outside]
-        usual_in = TYPICAL_LOOK[0] if e.usual_inside is None else e.usual_inside
-        usual_out = TYPICAL_LOOK[1] if e.usual_outside is None else e.usual_outside
-        features += [e.motion_seen, e.shape, e.inside - usual_in, e.outside - usual_out]
+        features += [e.motion_seen, e.shape, *e.change]
         rows.append([*map(float, features), kind, result.confidence, iou])
     return {"set": label, "name": name, "nodes": nodes, "rows": rows}
 

@@ -1,8 +1,8 @@
-"""Compiled loops (numba) of the test for something foreign in front.
+"""Compiled loops (numba) of the colour test of covered pieces.
 
-The colour histograms of :func:`engine.tracking.occlusion.foreign`: a ring round
-the object and the pieces the occlusion rule took for covered, each in one pass
-over its pixels.  Imported lazily, like :mod:`engine.tracking._image_kernels`,
+The colour histograms of :func:`engine.tracking.occlusion.piece_overlaps`: a ring
+round the object and the pieces the occlusion rule took for covered, each in one
+pass over its pixels.  Imported lazily, like :mod:`engine.tracking._image_kernels`,
 whose :func:`~engine.tracking._image_kernels.pixel_bin` bins the colours.  Images
 are indexed ``[y, x]``; origins are ``(x, y)``.
 """

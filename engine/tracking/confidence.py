@@ -184,6 +184,14 @@ class Evidence:
     usual_inside: float | None = None
     usual_outside: float | None = None
 
+    @property
+    def change(self) -> tuple[float, float]:
+        """``inside`` and ``outside`` less their usual values (:data:`TYPICAL_LOOK` where
+        not known): the last two inputs of :data:`COEFFICIENTS`."""
+        usual_in = TYPICAL_LOOK[0] if self.usual_inside is None else self.usual_inside
+        usual_out = TYPICAL_LOOK[1] if self.usual_outside is None else self.usual_outside
+        return self.inside - usual_in, self.outside - usual_out
+
 
 def _normalised(nodes: NDArray[np.float64]) -> NDArray[np.uint8] | None:
     """The closed contour moved to its centroid and scaled to :data:`SHAPE_SCALE` grid
@@ -272,8 +280,7 @@ def calibrated(e: Evidence) -> float:
     :data:`UNCONFIRMED` for a contour with nothing object-like inside (:data:`EMPTY_BELOW`)
     or nothing telling its inside from its surroundings (:data:`SEPARATION_BELOW`)."""
     bias, inside, outside, settled, moved_in, moved_out, seen, shape, *change = COEFFICIENTS
-    usual_in = TYPICAL_LOOK[0] if e.usual_inside is None else e.usual_inside
-    usual_out = TYPICAL_LOOK[1] if e.usual_outside is None else e.usual_outside
+    change_in, change_out = e.change
     logit = (
         bias
         + inside * e.inside
@@ -283,8 +290,8 @@ def calibrated(e: Evidence) -> float:
         + moved_out * e.motion_outside
         + seen * float(e.motion_seen)
         + shape * e.shape
-        + change[0] * (e.inside - usual_in)
-        + change[1] * (e.outside - usual_out)
+        + change[0] * change_in
+        + change[1] * change_out
     )
     value = 1.0 / (1.0 + math.exp(-logit))
     unseen = e.inside < EMPTY_BELOW or e.inside - e.outside < SEPARATION_BELOW
