@@ -87,6 +87,8 @@ def test_foreign_rejects_a_region_it_cannot_read(
     image, covered, _ = scene(GREEN)
     with pytest.raises(ValueError, match="region"):
         foreign(image, origin, covered, np.zeros(shape, np.bool_))
+    with pytest.raises(ValueError, match="region"):
+        piece_overlaps(image, origin, covered, np.zeros(shape, np.bool_))
 
 
 def test_piece_overlaps_labels_the_judged_pieces_and_scores_each() -> None:
