@@ -166,6 +166,17 @@ class TrackerOptions:
         0.729 against 0.717 (held out, four folds of five gain).  It cost lost
         detection on sequences the confidence model was not fitted on (see
         :data:`engine.tracking.confidence.TRACKING_FROM`).
+    bridge_strips : bool
+        The object's part beyond a thin strip that looks like background (a
+        pole or a bar in front of it, up to about 14 px wide) is taken back
+        across the strip when its colours are plainly the object's and it lies
+        inside the object's remembered outline (the cut's
+        :func:`engine.tracking.segmentation._bridge`; with ``shape_memory``).
+        Default True: without it the contour kept the strip's near side and
+        shrank with it as the strip swept across the object (the synthetic
+        ``occluder`` with a static bar: 4 seeds of 24 at 0.61-0.66 IoU, of
+        which 3 pass with it).  Cross-validated on the thirty training
+        sequences over five node counts: see ``docs/tracking-log.md``.
 
     Raises
     ------
@@ -195,6 +206,7 @@ class TrackerOptions:
     far_background: float = 0.2
     rigid_behind: bool = True
     revealed_background: bool = True
+    bridge_strips: bool = True
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -237,6 +249,7 @@ class TrackerOptions:
             "lighting",
             "rigid_behind",
             "revealed_background",
+            "bridge_strips",
         ):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false; got {getattr(self, name)!r}")

@@ -197,8 +197,14 @@ class Segmentation(Protocol):
         maps: Maps,
         predicted: NDArray[np.float64],
         refined: NDArray[np.float64],
+        *,
+        outline: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64] | None:
-        """The final (N, 2) ``[x, y]`` contour, or None to keep ``refined`` (the chain's)."""
+        """The final (N, 2) ``[x, y]`` contour, or None to keep ``refined`` (the chain's).
+
+        ``outline`` is the object's remembered outline moved with it (``[x, y]``
+        pixels; None without the shape memory), which a stage may use as a prior.
+        """
 
     def to_state(self) -> dict[str, Any]:
         """JSON-able state (what was learnt; not the constructor's parameters)."""

@@ -191,7 +191,7 @@ class Tracker:
         self.cues: BoundaryCues = cues or RegionEdgeCues(
             opts.search_radius, opts.occlusion, opts.rigid_behind, opts.revealed_background
         )
-        self.segmentation: Segmentation = segmentation or BandCut(opts.cut_band)
+        self.segmentation: Segmentation = segmentation or BandCut(opts.cut_band, opts.bridge_strips)
         for name, stage, kind in (
             ("motion", self.motion, MotionModel),
             ("appearance", self.appearance, AppearanceModel),
@@ -448,7 +448,9 @@ class Tracker:
         nodes = refinement.nodes
         # behind another object, the cut's smoothness would pull the unseen part in
         behind = covered_share(crowd.covered, prediction.nodes) >= BEHIND_FROM
-        cut = None if behind else self.segmentation.segment(image, maps, prediction.nodes, nodes)
+        cut = None
+        if not behind:
+            cut = self.segmentation.segment(image, maps, prediction.nodes, nodes, outline=outline)
         if cut is not None and valid_contour(cut, grey.shape, self._nodes):
             nodes = cut
         found = evidence(maps, nodes, refinement.converged, self._memory.outline)

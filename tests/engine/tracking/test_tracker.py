@@ -395,6 +395,8 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("rigid_behind", "yes"),
     ("revealed_background", 0),
     ("revealed_background", None),
+    ("bridge_strips", 1),
+    ("bridge_strips", "no"),
 ]
 
 
