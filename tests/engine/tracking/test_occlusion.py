@@ -178,10 +178,12 @@ def test_a_bar_sweeping_across_the_object_does_not_drag_the_contour_along() -> N
 
     Bent by the dense flow next to the bar, the contour went with the bar and kept
     only the part on one side of it (0.66); moved rigidly while the bar is in front,
-    it keeps the whole object.
+    it keeps the whole object.  Taking back the part beyond the bar
+    (``bridge_strips``) rescues it too, so it is off for this comparison.
     """
-    assert _mean_iou("occluder", 4, rigid_behind=True) >= 0.95
-    assert _mean_iou("occluder", 4, rigid_behind=False) < 0.8
+    off = {"bridge_strips": False}
+    assert _mean_iou("occluder", 4, rigid_behind=True, **off) >= 0.95
+    assert _mean_iou("occluder", 4, rigid_behind=False, **off) < 0.8
 
 
 @pytest.mark.parametrize(
