@@ -256,6 +256,27 @@ _OPENING_DISC = cv2.getStructuringElement(
 """The disc of radius :data:`REGROW_OPENING` the regrown pixels are opened with."""
 
 
+def _pieces(
+    candidates: NDArray[np.bool_], seg: NDArray[np.bool_]
+) -> tuple[NDArray[np.int32], NDArray[np.bool_]] | None:
+    """The ``candidates`` opened by the disc of :data:`REGROW_OPENING`, as 4-connected pieces.
+
+    Returns their labels (0: none) and, per label, whether the piece has a 4-neighbour
+    in the object ``seg``; None when the opening leaves nothing.
+    """
+    strong = candidates.astype(np.uint8)
+    if not strong.any():
+        return None
+    strong = np.asarray(cv2.morphologyEx(strong, cv2.MORPH_OPEN, _OPENING_DISC), np.uint8)
+    if not strong.any():
+        return None
+    count, labels = cv2.connectedComponents(strong, connectivity=4)
+    near = np.asarray(cv2.dilate(seg.astype(np.uint8), _CROSS), np.uint8) & strong
+    touching = np.zeros(count, dtype=np.bool_)
+    touching[labels[near > 0]] = True
+    return np.asarray(labels, np.int32), touching
+
+
 def _regrow(
     seg: NDArray[np.bool_],
     distance: NDArray[np.float32],
@@ -275,17 +296,10 @@ def _regrow(
     (docs/tracking-log.md, "Parts taken back"); occluded pixels are
     neutral (p = 0.5) and never taken.
     """
-    strong = ((probability > REGROW_ABOVE) & (distance < -band)).astype(np.uint8)
-    if not strong.any():
+    found = _pieces((probability > REGROW_ABOVE) & (distance < -band), seg)
+    if found is None:
         return seg
-    strong = np.asarray(cv2.morphologyEx(strong, cv2.MORPH_OPEN, _OPENING_DISC), np.uint8)
-    if not strong.any():
-        return seg
-    # the pieces of ``strong`` with a 4-neighbour in the object, as a lookup table
-    count, labels = cv2.connectedComponents(strong, connectivity=4)
-    near = np.asarray(cv2.dilate(seg.astype(np.uint8), _CROSS), np.uint8) & strong
-    touching = np.zeros(count, dtype=np.bool_)
-    touching[labels[near > 0]] = True
+    labels, touching = found
     grown: NDArray[np.bool_] = touching[labels]
     if np.count_nonzero(grown) > REGROW_CAP * np.count_nonzero(seg):
         return seg
@@ -318,16 +332,11 @@ def _bridge(
     (then none is).  The outline keeps it to where the object was: background of the
     object's colours beyond a pole is not the object's unless its shape says so.
     """
-    strong = ((probability > REGROW_ABOVE) & remembered & ~seg).astype(np.uint8)
-    if not strong.any():
+    found = _pieces((probability > REGROW_ABOVE) & remembered & ~seg, seg)
+    if found is None:
         return seg
-    strong = np.asarray(cv2.morphologyEx(strong, cv2.MORPH_OPEN, _OPENING_DISC), np.uint8)
-    if not strong.any():
-        return seg
-    count, labels = cv2.connectedComponents(strong, connectivity=4)
-    object_ = seg.astype(np.uint8)
-    loose = np.ones(count, dtype=np.bool_)  # the pieces that do not touch the object
-    loose[labels[(np.asarray(cv2.dilate(object_, _CROSS)) > 0) & (strong > 0)]] = False
+    labels, touching = found
+    loose = ~touching  # the pieces that do not touch the object
     loose[0] = False
     if not loose.any():
         return seg
@@ -337,10 +346,10 @@ def _bridge(
     margin = 4 * BRIDGE_GAP
     y0, x0 = max(int(ys.min()) - margin, 0), max(int(xs.min()) - margin, 0)
     box = np.s_[y0 : int(ys.max()) + margin + 1, x0 : int(xs.max()) + margin + 1]
-    labels_, object_, strong_ = labels[box], object_[box], strong[box] > 0
+    labels_, object_ = labels[box], seg[box].astype(np.uint8)
     reach = np.asarray(cv2.dilate(cv2.dilate(object_, _BRIDGE_DISC), _BRIDGE_DISC)) > 0
-    near = np.zeros(count, dtype=np.bool_)
-    near[labels_[reach & strong_]] = True
+    near = np.zeros(len(touching), dtype=np.bool_)
+    near[labels_[reach & (labels_ > 0)]] = True
     pieces = (near & loose)[labels_]
     if not pieces.any():
         return seg
