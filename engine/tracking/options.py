@@ -171,7 +171,7 @@ class TrackerOptions:
         pole or a bar in front of it, up to about 14 px wide) is taken back
         across the strip when its colours are plainly the object's and it lies
         inside the object's remembered outline (the cut's
-        :func:`engine.tracking.segmentation._bridge`; with ``shape_memory``).
+        :func:`engine.tracking.beyond_band.bridge`; with ``shape_memory``).
         Default True: without it the contour kept the strip's near side and
         shrank with it as the strip swept across the object (the synthetic
         ``occluder`` with a static bar: 4 seeds of 24 at 0.61-0.66 IoU, of

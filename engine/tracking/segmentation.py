@@ -15,11 +15,10 @@ the refined contour), and V a contrast-sensitive smoothness.  Pixels beyond
 the band keep the side the chain gave them, so the cut can move the
 boundary by at most the band per frame: it pulls in thin parts (legs,
 wings) and lets go of leaks the chain would carry on, and cannot run away
-with the background.  Beyond the band, only what is clearly the object's and
-touches it is taken back (a part the contour lost, :func:`_regrow`), and so
-is the object's part beyond a thin strip that looks like background (a pole, a
-bar in front of it) while it lies inside the object's remembered outline
-(:func:`_bridge`).  The
+with the background.  Beyond the band, only what is plain in the cut's p(object)
+changes (:mod:`engine.tracking.beyond_band`): a part the contour lost is taken back,
+and the object's part beyond a thin strip that looks like background (a pole, a bar in front
+of it) is joined while it lies inside the object's remembered outline.  The
 largest piece of the cut becomes the contour again; when the cut splits the
 object into comparable pieces (an occluder across it), the chain's contour is
 kept, since one contour cannot follow both.  Coordinates are ``[x, y]`` pixels.
@@ -35,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask, mask_to_contour, perimeter
+from engine.tracking.beyond_band import bridge, regrow
 from engine.tracking.local_colour import LocalColour
 from engine.tracking.maps import Maps
 from engine.tracking.motion_contrast import with_motion
@@ -68,23 +68,6 @@ cut stays within the frame's time budget."""
 MIN_OVERLAP = 0.3
 """The kept piece must cover 30 % of the chain's silhouette: a cut that lost
 most of the object is not trusted over the chain."""
-REGROW_ABOVE = 0.9
-"""Beyond the band, pixels at least this object-like (colour and motion, as the cut
-reads them) that touch the cut's object are taken back (:func:`_regrow`)."""
-REGROW_OPENING = 2
-"""Radius (pixels of the cut's resolution) of the disc the regrown pixels are opened
-with: strips of object colour under 5 px wide along the background (a banner's edge, a
-shadow's rim) are not taken, a leg or a wing is."""
-REGROW_CAP = 0.15
-"""Regrowth of more than 15 % of the cut's object in one frame is background of the
-object's colours coming in (a leak), not a part the contour lost: none is taken."""
-BRIDGE_GAP = 7
-"""Radius (pixels of the cut's resolution) of the disc that joins the object to a clearly
-object-like piece beyond a strip (:func:`_bridge`): strips up to 14 px wide, a pole or a
-bar in front of the object, are crossed.  The ``occluder`` condition's static bars are 6-7
-px wide, with a few pixels the occlusion rule keeps covered next to them; 10 crossed no
-more of them and scored the same on the thirty training sequences (mean J over five node
-counts 0.7291 against 0.7287 at 7)."""
 
 
 class BandCut:
@@ -97,7 +80,8 @@ class BandCut:
         contour that the cut may relabel (0 disables the stage).
     bridge : bool, default False
         :attr:`TrackerOptions.bridge_strips`: take back the object's part beyond a
-        thin background-looking strip, inside the remembered outline (:func:`_bridge`).
+        thin background-looking strip, inside the remembered outline
+        (:func:`engine.tracking.beyond_band.bridge`).
     """
 
     def __init__(self, band: int, bridge: bool = False) -> None:
@@ -173,11 +157,11 @@ class BandCut:
             if observed is not None:
                 local = np.where(probability != observed, probability, local)
             probability = np.asarray(local, dtype=np.float32)
-        seg = _regrow(_cut(distance, band, region, probability, scale), distance, band, probability)
+        seg = regrow(_cut(distance, band, region, probability, scale), distance, band, probability)
         if self.bridge and outline is not None:
             remembered = contour_to_mask((outline - [x0, y0] + 0.5) / scale - 0.5, region.shape)
             # the outline's own edge pixels are left out: it is only roughly aligned
-            seg = _bridge(seg, probability, np.asarray(cv2.erode(remembered, _CROSS)) > 0)
+            seg = bridge(seg, probability, np.asarray(cv2.erode(remembered, _CROSS)) > 0)
         found = _largest_piece(seg, inside, len(refined))
         if found is None:
             return None
@@ -250,119 +234,6 @@ def _cut(
 
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 """A pixel and its four neighbours."""
-_OPENING_DISC = cv2.getStructuringElement(
-    cv2.MORPH_ELLIPSE, (2 * REGROW_OPENING + 1, 2 * REGROW_OPENING + 1)
-)
-"""The disc of radius :data:`REGROW_OPENING` the regrown pixels are opened with."""
-
-
-def _pieces(
-    candidates: NDArray[np.bool_], seg: NDArray[np.bool_]
-) -> tuple[NDArray[np.int32], NDArray[np.bool_]] | None:
-    """The ``candidates`` opened by the disc of :data:`REGROW_OPENING`, as 4-connected pieces.
-
-    Returns their labels (0: none) and, per label, whether the piece has a 4-neighbour
-    in the object ``seg``; None when the opening leaves nothing.
-    """
-    strong = candidates.astype(np.uint8)
-    if not strong.any():
-        return None
-    strong = np.asarray(cv2.morphologyEx(strong, cv2.MORPH_OPEN, _OPENING_DISC), np.uint8)
-    if not strong.any():
-        return None
-    count, labels = cv2.connectedComponents(strong, connectivity=4)
-    near = np.asarray(cv2.dilate(seg.astype(np.uint8), _CROSS), np.uint8) & strong
-    touching = np.zeros(count, dtype=np.bool_)
-    touching[labels[near > 0]] = True
-    return np.asarray(labels, np.int32), touching
-
-
-def _regrow(
-    seg: NDArray[np.bool_],
-    distance: NDArray[np.float32],
-    band: float,
-    probability: NDArray[np.float32],
-) -> NDArray[np.bool_]:
-    """The cut's object with the clearly object-like pixels beyond the band that touch it.
-
-    The cut moves the boundary by at most the band a frame, so a part the contour
-    lost (a dancer's leg swung out faster than that, a wing) stays lost while its
-    pixels say plainly that they are the object's.  Pixels beyond the band with
-    p(object) above :data:`REGROW_ABOVE`, opened by a disc of radius
-    :data:`REGROW_OPENING`, are added where they touch the object (4-connected),
-    unless they add more than :data:`REGROW_CAP` of it (then none is).  On the thirty
-    training sequences, mean J over 15 node counts 0.690 to 0.693, chosen in five
-    folds of five over ten of them and in three of five over the other five
-    (docs/tracking-log.md, "Parts taken back"); occluded pixels are
-    neutral (p = 0.5) and never taken.
-    """
-    found = _pieces((probability > REGROW_ABOVE) & (distance < -band), seg)
-    if found is None:
-        return seg
-    labels, touching = found
-    grown: NDArray[np.bool_] = touching[labels]
-    if np.count_nonzero(grown) > REGROW_CAP * np.count_nonzero(seg):
-        return seg
-    return np.logical_or(seg, grown)
-
-
-_BRIDGE_DISC = cv2.getStructuringElement(
-    cv2.MORPH_ELLIPSE, (2 * BRIDGE_GAP + 1, 2 * BRIDGE_GAP + 1)
-)
-"""The disc of radius :data:`BRIDGE_GAP` that joins a piece across a strip."""
-
-
-def _bridge(
-    seg: NDArray[np.bool_],
-    probability: NDArray[np.float32],
-    remembered: NDArray[np.bool_],
-) -> NDArray[np.bool_]:
-    """The cut's object joined, across a thin strip, to the object-like pieces beyond it.
-
-    A thin occluder that looks like background (a pole, a bar of the background's
-    colours) sweeping across the object splits it, and the largest piece alone is
-    kept: frame after frame the contour stays on the strip's near side and shrinks
-    with what is left there, while the far side plainly shows the object's colours.
-    Pixels with p(object) above :data:`REGROW_ABOVE` inside the ``remembered``
-    outline (bool mask) and outside the object, opened by the disc of
-    :data:`REGROW_OPENING`, that do not touch the object but come within
-    2 x :data:`BRIDGE_GAP` pixels of it, are added with the strip between (the
-    closing of the union by the disc of :data:`BRIDGE_GAP`, inside the outline, near
-    those pieces), unless all this adds more than :data:`REGROW_CAP` of the object
-    (then none is).  The outline keeps it to where the object was: background of the
-    object's colours beyond a pole is not the object's unless its shape says so.
-    """
-    found = _pieces((probability > REGROW_ABOVE) & remembered & ~seg, seg)
-    if found is None:
-        return seg
-    labels, touching = found
-    loose = ~touching  # the pieces that do not touch the object
-    loose[0] = False
-    if not loose.any():
-        return seg
-    # what follows reads at most 4 x BRIDGE_GAP px from the loose pieces: their box with
-    # that margin gives exactly the whole region's result (borders included)
-    ys, xs = np.nonzero(loose[labels])
-    margin = 4 * BRIDGE_GAP
-    y0, x0 = max(int(ys.min()) - margin, 0), max(int(xs.min()) - margin, 0)
-    box = np.s_[y0 : int(ys.max()) + margin + 1, x0 : int(xs.max()) + margin + 1]
-    labels_, object_ = labels[box], seg[box].astype(np.uint8)
-    reach = np.asarray(cv2.dilate(cv2.dilate(object_, _BRIDGE_DISC), _BRIDGE_DISC)) > 0
-    near = np.zeros(len(touching), dtype=np.bool_)
-    near[labels_[reach & (labels_ > 0)]] = True
-    pieces = (near & loose)[labels_]
-    if not pieces.any():
-        return seg
-    union = (object_ | pieces).astype(np.uint8)
-    joined = np.asarray(cv2.morphologyEx(union, cv2.MORPH_CLOSE, _BRIDGE_DISC)) > 0
-    around = cv2.dilate(cv2.dilate(pieces.astype(np.uint8), _BRIDGE_DISC), _BRIDGE_DISC)
-    inside = remembered[box] & (object_ == 0)
-    grown = pieces | (joined & inside & (np.asarray(around) > 0))
-    if np.count_nonzero(grown) > REGROW_CAP * np.count_nonzero(seg):
-        return seg
-    bridged = seg.copy()
-    bridged[box] |= grown
-    return bridged
 
 
 def _largest_piece(

@@ -1,4 +1,4 @@
-"""engine.tracking.segmentation._bridge: the object's part beyond a thin strip, taken back."""
+"""engine.tracking.beyond_band.bridge: the object's part beyond a thin strip, taken back."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from engine.tracking import segmentation
-from engine.tracking.segmentation import BRIDGE_GAP, REGROW_ABOVE, REGROW_CAP, _bridge
+from engine.tracking import beyond_band
+from engine.tracking.beyond_band import BRIDGE_GAP, REGROW_ABOVE, REGROW_CAP, bridge
 
 SHAPE = (120, 200)
 ROWS = slice(30, 90)  # the object: a 60-row block from column 10 to FAR_END
@@ -36,7 +36,7 @@ def scene(strip: int, width: int, remembered_to: int = FAR_END) -> Masks:
 
 def test_the_part_beyond_a_thin_strip_is_taken_back_with_the_strip() -> None:
     seg, p, remembered = scene(158, 6)
-    grown = _bridge(seg, p, remembered)
+    grown = bridge(seg, p, remembered)
     assert grown[33:87, 166 : FAR_END - 2].all()  # the far part (its corners opened off)
     assert grown[40:80, 158:164].all()  # and the strip between, away from its ends
     assert not (grown & ~seg & ~remembered).any()  # nothing outside the outline
@@ -46,31 +46,31 @@ def test_the_part_beyond_a_thin_strip_is_taken_back_with_the_strip() -> None:
 def test_nothing_is_taken_across_a_wide_strip() -> None:
     width = 2 * BRIDGE_GAP + 2
     seg, p, remembered = scene(FAR_END - 8 - width, width)
-    assert np.array_equal(_bridge(seg, p, remembered), seg)
+    assert np.array_equal(bridge(seg, p, remembered), seg)
 
 
 def test_nothing_is_taken_outside_the_remembered_outline() -> None:
     seg, p, remembered = scene(158, 6, remembered_to=164)
-    assert np.array_equal(_bridge(seg, p, remembered), seg)
+    assert np.array_equal(bridge(seg, p, remembered), seg)
 
 
 def test_nothing_is_taken_when_it_would_grow_the_object_too_much() -> None:
     seg, p, remembered = scene(60, 6)  # the far part is twice the cut's object
     assert (FAR_END - 66) > REGROW_CAP * (60 - 10)
-    assert np.array_equal(_bridge(seg, p, remembered), seg)
+    assert np.array_equal(bridge(seg, p, remembered), seg)
 
 
-def whole_region_bridge(
+def whole_regionbridge(
     seg: NDArray[np.bool_], p: NDArray[np.float32], remembered: NDArray[np.bool_]
 ) -> NDArray[np.bool_]:
-    """``_bridge`` as its docstring says it, computed on the whole region (no box)."""
-    disc, opening = segmentation._BRIDGE_DISC, segmentation._OPENING_DISC
+    """``bridge`` as its docstring says it, computed on the whole region (no box)."""
+    disc, opening = beyond_band._BRIDGE_DISC, beyond_band._OPENING_DISC
     candidates = ((p > REGROW_ABOVE) & remembered & ~seg).astype(np.uint8)
     strong = np.asarray(cv2.morphologyEx(candidates, cv2.MORPH_OPEN, opening), np.uint8)
     count, labels = cv2.connectedComponents(strong, connectivity=4)
     object_ = seg.astype(np.uint8)
     touching = np.zeros(count, bool)
-    touching[labels[(cv2.dilate(object_, segmentation._CROSS) > 0) & (strong > 0)]] = True
+    touching[labels[(cv2.dilate(object_, beyond_band._CROSS) > 0) & (strong > 0)]] = True
     near = np.zeros(count, bool)
     near[labels[(cv2.dilate(cv2.dilate(object_, disc), disc) > 0) & (strong > 0)]] = True
     near[0] = False
@@ -107,7 +107,7 @@ def test_working_in_the_loose_pieces_box_changes_nothing(seed: int) -> None:
         outline = np.zeros((h, w), np.uint8)
         centre = (int(rng.integers(0, w)), int(rng.integers(0, h)))
         cv2.circle(outline, centre, int(rng.integers(10, 80)), 1, -1)
-        expected = whole_region_bridge(seg, p, outline > 0)
-        np.testing.assert_array_equal(_bridge(seg, p, outline > 0), expected)
+        expected = whole_regionbridge(seg, p, outline > 0)
+        np.testing.assert_array_equal(bridge(seg, p, outline > 0), expected)
         bridged += not np.array_equal(expected, seg)
     assert bridged > 0  # some scenes were bridged

@@ -225,7 +225,7 @@ def test_the_contour_does_not_shrink_behind_a_static_bar() -> None:
     """Synthetic ``occluder``, seed 16: the object moves across a static bar.
 
     The bar looks like background and splits the object; without the bridge
-    (:func:`engine.tracking.segmentation._bridge`) the contour kept the part on one
+    (:func:`engine.tracking.beyond_band.bridge`) the contour kept the part on one
     side and shrank with it to nothing (0.64).
     """
     assert _mean_iou("occluder", 16, bridge_strips=True) >= 0.95

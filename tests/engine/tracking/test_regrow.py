@@ -1,4 +1,4 @@
-"""engine.tracking.segmentation._regrow: parts the contour lost, taken back beyond the band."""
+"""engine.tracking.beyond_band.regrow: parts the contour lost, taken back beyond the band."""
 
 from __future__ import annotations
 
@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-import engine.tracking.segmentation as segmentation
+import engine.tracking.beyond_band as beyond_band
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
 from engine.tracking import Tracker
-from engine.tracking.segmentation import REGROW_ABOVE, REGROW_CAP, _regrow, _signed_distance
+from engine.tracking.beyond_band import REGROW_ABOVE, REGROW_CAP, regrow
+from engine.tracking.segmentation import _signed_distance
 
 BAND = 8.0
 SHAPE = (120, 160)
@@ -35,7 +36,7 @@ def test_a_lost_leg_beyond_the_band_is_taken_back() -> None:
     seg, distance = body()
     leg = (76, 85, 84, 118)  # 8 px wide, from inside the disc down to row 117
     seg[85:118, 76:84] |= distance[85:118, 76:84] >= -BAND  # the cut took the band's part
-    grown = _regrow(seg, distance, BAND, probability_with(leg))
+    grown = regrow(seg, distance, BAND, probability_with(leg))
     beyond = distance < -BAND
     expected = np.zeros(SHAPE, bool)
     expected[85:118, 76:84] = True
@@ -49,22 +50,22 @@ def test_a_lost_leg_beyond_the_band_is_taken_back() -> None:
 def test_thin_strips_loose_blobs_and_leaks_are_not_taken() -> None:
     seg, distance = body()
     strip = (79, 85, 82, 118)  # 3 px wide: under the opening's disc
-    assert np.array_equal(_regrow(seg, distance, BAND, probability_with(strip)), seg)
+    assert np.array_equal(regrow(seg, distance, BAND, probability_with(strip)), seg)
     loose = (2, 2, 20, 20)  # object-like, but not touching the object
-    assert np.array_equal(_regrow(seg, distance, BAND, probability_with(loose)), seg)
+    assert np.array_equal(regrow(seg, distance, BAND, probability_with(loose)), seg)
     leak = (0, 85, 160, 120)  # the whole bottom of the frame: far more than the cap
     assert np.count_nonzero(probability_with(leak) > REGROW_ABOVE) > (1 + REGROW_CAP) * seg.sum()
-    assert np.array_equal(_regrow(seg, distance, BAND, probability_with(leak)), seg)
+    assert np.array_equal(regrow(seg, distance, BAND, probability_with(leak)), seg)
 
 
 def test_within_the_band_and_on_neutral_pixels_nothing_changes() -> None:
     seg, distance = body()
     p = probability_with()
     p[distance < -BAND] = 0.5  # occluded pixels are neutral: never taken
-    assert np.array_equal(_regrow(seg, distance, BAND, p), seg)
+    assert np.array_equal(regrow(seg, distance, BAND, p), seg)
     near = probability_with((0, 0, 160, 120))
     near[distance < -BAND] = 0.05  # object-like only within the band: the cut's to decide
-    assert np.array_equal(_regrow(seg, distance, BAND, near), seg)
+    assert np.array_equal(regrow(seg, distance, BAND, near), seg)
 
 
 def swinging_leg(steps: int) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.uint8]]]:
@@ -101,7 +102,7 @@ def test_the_tracker_keeps_a_leg_that_swings_faster_than_the_band(
         return mask_iou(contour_to_mask(result.nodes, masks[-1].shape), masks[-1])
 
     with_regrowth = last_iou()
-    monkeypatch.setattr(segmentation, "REGROW_ABOVE", 1.0)  # nothing is that sure
+    monkeypatch.setattr(beyond_band, "REGROW_ABOVE", 1.0)  # nothing is that sure
     without = last_iou()
     assert with_regrowth >= 0.95
     assert with_regrowth > without + 0.05
