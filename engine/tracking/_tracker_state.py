@@ -112,6 +112,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("rigid_behind", False)  # and before the rigid prediction behind
         options.setdefault("revealed_background", False)  # and before uncovered background
         options.setdefault("bridge_strips", False)  # and before the strips bridged
+        options.setdefault("carve_gaps", False)  # and before the gaps carved
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])

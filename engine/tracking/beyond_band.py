@@ -1,14 +1,17 @@
-"""What the band cut may change beyond its band: parts taken back, strips crossed.
+"""What the band cut may change beyond its band: parts taken back, strips crossed, gaps opened.
 
 The band cut (:mod:`engine.tracking.segmentation`) relabels only pixels within
 :attr:`TrackerOptions.cut_band` of the chain's contour, so it moves the boundary by at
-most the band a frame and cannot run away with the background.  Two things move
+most the band a frame and cannot run away with the background.  Three things move
 faster than that, and each is plain in the cut's p(object) beyond the band:
 
 - a part the contour lost (a dancer's leg swung out, a wing): clearly object-like
   pixels that touch the object are taken back (:func:`regrow`);
 - the object's part beyond a thin strip that looks like background (a pole, a bar in
-  front of it), inside the object's remembered outline (:func:`bridge`).
+  front of it), inside the object's remembered outline (:func:`bridge`);
+- background seen through a gap that opened inside the object (between two limbs):
+  clearly background-like pixels connected to the background are left out
+  (:func:`carve`).
 
 Each works on the cut's labelling at the cut's resolution (a bool mask of the region,
 True on the object), is limited to :data:`REGROW_CAP` of the object a frame, and takes
@@ -23,7 +26,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["BRIDGE_GAP", "REGROW_ABOVE", "REGROW_CAP", "REGROW_OPENING", "bridge", "regrow"]
+__all__ = [
+    "BRIDGE_GAP",
+    "CARVE_BELOW",
+    "REGROW_ABOVE",
+    "REGROW_CAP",
+    "REGROW_OPENING",
+    "bridge",
+    "carve",
+    "regrow",
+]
 
 REGROW_ABOVE = 0.9
 """Beyond the band, pixels at least this object-like (colour and motion, as the cut
@@ -35,6 +47,11 @@ shadow's rim) are not taken, a leg or a wing is."""
 REGROW_CAP = 0.15
 """Regrowth of more than 15 % of the cut's object in one frame is background of the
 object's colours coming in (a leak), not a part the contour lost: none is taken."""
+CARVE_BELOW = 1 - REGROW_ABOVE
+"""Inside the band's fixed object, pixels at most this object-like that reach the
+background are a gap that opened (:func:`carve`): as sure of the background as the
+regrowth is of the object (on the thirty training sequences, mean J over five node
+counts 0.7346 at 0.1, 0.7346 at 0.2, 0.7313 at 0.05)."""
 BRIDGE_GAP = 7
 """Radius (pixels of the cut's resolution) of the disc that joins the object to a clearly
 object-like piece beyond a strip (:func:`bridge`): strips up to 14 px wide, a pole or a
@@ -159,3 +176,39 @@ def bridge(
     bridged = seg.copy()
     bridged[box] |= grown
     return bridged
+
+
+def carve(
+    seg: NDArray[np.bool_],
+    distance: NDArray[np.float32],
+    band: float,
+    probability: NDArray[np.float32],
+) -> NDArray[np.bool_]:
+    """The cut's object without the background seen through a gap that opened inside it.
+
+    Two limbs that touched part (a runner's legs, an arm leaving the hip), and the
+    background between them lies deeper inside the chain's contour than the band: the
+    cut must keep it, and the contour spans the gap frame after frame.  Pixels of the
+    object with p(object) below :data:`CARVE_BELOW` are taken out where, 8-connected,
+    they reach the cut's background and hold a piece beyond the band at least the disc
+    of :data:`REGROW_OPENING` wide (the gap's mouth may be narrower than the disc: it
+    is where the contour goes in), unless they are more than :data:`REGROW_CAP` of the
+    object (then none is).  A hole that does not reach the background is left: one
+    contour cannot leave it out.
+    """
+    dark = (probability < CARVE_BELOW) & seg
+    deep = dark & (distance > band)
+    if not deep.any():
+        return seg
+    deep = np.asarray(cv2.morphologyEx(deep.astype(np.uint8), cv2.MORPH_OPEN, _OPENING_DISC))
+    if not deep.any():
+        return seg
+    count, labels = cv2.connectedComponents(dark.astype(np.uint8), connectivity=8)
+    reaching = np.zeros(count, dtype=np.bool_)
+    reaching[labels[(np.asarray(cv2.dilate((~seg).astype(np.uint8), _CROSS)) > 0) & dark]] = True
+    holding = np.zeros(count, dtype=np.bool_)
+    holding[labels[deep > 0]] = True
+    gap: NDArray[np.bool_] = (reaching & holding)[labels]
+    if not gap.any() or np.count_nonzero(gap) > REGROW_CAP * np.count_nonzero(seg):
+        return seg
+    return seg & ~gap

@@ -17,7 +17,8 @@ boundary by at most the band per frame: it pulls in thin parts (legs,
 wings) and lets go of leaks the chain would carry on, and cannot run away
 with the background.  Beyond the band, only what is plain in the cut's p(object)
 changes (:mod:`engine.tracking.beyond_band`): a part the contour lost is taken back,
-and the object's part beyond a thin strip that looks like background (a pole, a bar in front
+background seen through a gap that opened inside the object is left out, and the
+object's part beyond a thin strip that looks like background (a pole, a bar in front
 of it) is joined while it lies inside the object's remembered outline.  The
 largest piece of the cut becomes the contour again; when the cut splits the
 object into comparable pieces (an occluder across it), the chain's contour is
@@ -34,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask, mask_to_contour, perimeter
-from engine.tracking.beyond_band import bridge, regrow
+from engine.tracking.beyond_band import bridge, carve, regrow
 from engine.tracking.local_colour import LocalColour
 from engine.tracking.maps import Maps
 from engine.tracking.motion_contrast import with_motion
@@ -82,11 +83,15 @@ class BandCut:
         :attr:`TrackerOptions.bridge_strips`: take back the object's part beyond a
         thin background-looking strip, inside the remembered outline
         (:func:`engine.tracking.beyond_band.bridge`).
+    carve : bool, default False
+        :attr:`TrackerOptions.carve_gaps`: leave out the background seen through a gap
+        that opened inside the object (:func:`engine.tracking.beyond_band.carve`).
     """
 
-    def __init__(self, band: int, bridge: bool = False) -> None:
+    def __init__(self, band: int, bridge: bool = False, carve: bool = False) -> None:
         self.band = band
         self.bridge = bridge
+        self.carve = carve
         self._windows: LocalColour | None = None
 
     def start(self, image: Frame, nodes: NDArray[np.float64]) -> None:
@@ -158,6 +163,8 @@ class BandCut:
                 local = np.where(probability != observed, probability, local)
             probability = np.asarray(local, dtype=np.float32)
         seg = regrow(_cut(distance, band, region, probability, scale), distance, band, probability)
+        if self.carve:
+            seg = carve(seg, distance, band, probability)
         if self.bridge and outline is not None:
             remembered = contour_to_mask((outline - [x0, y0] + 0.5) / scale - 0.5, region.shape)
             # the outline's own edge pixels are left out: it is only roughly aligned
@@ -175,7 +182,7 @@ class BandCut:
     def from_state(self, state: Mapping[str, Any]) -> Self:
         """This stage holding ``state`` (of :meth:`to_state`)."""
         check_kind(state, KIND, "segmentation")
-        restored = type(self)(self.band, self.bridge)
+        restored = type(self)(self.band, self.bridge, self.carve)
         windows = state.get("windows")
         if windows is not None:
             restored._windows = LocalColour.from_state(windows)

@@ -191,7 +191,9 @@ class Tracker:
         self.cues: BoundaryCues = cues or RegionEdgeCues(
             opts.search_radius, opts.occlusion, opts.rigid_behind, opts.revealed_background
         )
-        self.segmentation: Segmentation = segmentation or BandCut(opts.cut_band, opts.bridge_strips)
+        self.segmentation: Segmentation = segmentation or BandCut(
+            opts.cut_band, opts.bridge_strips, opts.carve_gaps
+        )
         for name, stage, kind in (
             ("motion", self.motion, MotionModel),
             ("appearance", self.appearance, AppearanceModel),

@@ -107,8 +107,10 @@ def test_far_background_is_kept_through_a_state_and_read_as_off_when_missing(
     assert Tracker.from_state(state).options.far_background == 0.0
 
 
-@pytest.mark.parametrize("option", ["rigid_behind", "revealed_background", "bridge_strips"])
-def test_an_occlusion_option_is_kept_through_a_state_and_read_as_off_when_missing(
+@pytest.mark.parametrize(
+    "option", ["rigid_behind", "revealed_background", "bridge_strips", "carve_gaps"]
+)
+def test_an_option_added_later_is_kept_through_a_state_and_read_as_off_when_missing(
     option: str, frames: list[U8]
 ) -> None:
     on: dict[str, Any] = {option: True}
@@ -285,6 +287,7 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
         rigid_behind=False,
         revealed_background=False,
         bridge_strips=False,
+        carve_gaps=False,
     )
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])

@@ -397,6 +397,8 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("revealed_background", None),
     ("bridge_strips", 1),
     ("bridge_strips", "no"),
+    ("carve_gaps", 1.0),
+    ("carve_gaps", "yes"),
 ]
 
 

@@ -1,0 +1,97 @@
+"""engine.tracking.beyond_band.carve: background seen through a gap inside the object, left out."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
+from engine.tracking import Tracker
+from engine.tracking.beyond_band import CARVE_BELOW, REGROW_CAP, carve
+from engine.tracking.segmentation import _signed_distance
+
+BAND = 8.0
+SHAPE = (120, 160)
+RADIUS = 40
+
+
+def body() -> tuple[NDArray[np.bool_], NDArray[np.float32]]:
+    """A disc as the cut's object and its signed distance (the chain's contour is its edge)."""
+    inside = contour_to_mask(circle_nodes((80.0, 60.0), float(RADIUS), 360), SHAPE) > 0
+    return inside, _signed_distance(inside.astype(np.uint8))
+
+
+def probability_with(gap: NDArray[np.bool_]) -> NDArray[np.float32]:
+    """p(object): 0.95 on the disc, 0.05 around it and on ``gap``."""
+    seg, _ = body()
+    return np.where(seg & ~gap, 0.95, 0.05).astype(np.float32)
+
+
+def test_a_gap_reaching_the_background_is_left_out_through_a_narrow_mouth() -> None:
+    seg, distance = body()
+    # a gap opened between two limbs: 16 px wide beyond the band, 2 px wide where it
+    # meets the background (the cut kept that mouth: too thin to pay for its edges)
+    gap = np.zeros(SHAPE, bool)
+    gap[70:96, 72:88] = True  # the gap beyond the band
+    gap[96:101, 79:81] = True  # its mouth, out to the disc's edge
+    p = probability_with(gap)
+    carved = carve(seg, distance, BAND, p)
+    assert not carved[gap & seg].any()  # all of it, mouth included
+    assert np.array_equal(carved, seg & ~gap)  # and nothing else
+
+
+def test_holes_thin_strips_and_gaps_within_the_band_are_kept() -> None:
+    seg, distance = body()
+    hole = np.zeros(SHAPE, bool)
+    hole[50:70, 70:90] = True  # deep inside, not reaching the background
+    assert np.array_equal(carve(seg, distance, BAND, probability_with(hole)), seg)
+    strip = np.zeros(SHAPE, bool)
+    strip[60:101, 79:82] = True  # reaches it, but 3 px wide: under the opening's disc
+    assert np.array_equal(carve(seg, distance, BAND, probability_with(strip)), seg)
+    notch = np.zeros(SHAPE, bool)
+    notch[95:101, 70:90] = True  # within the band: the cut's to decide
+    assert np.array_equal(carve(seg, distance, BAND, probability_with(notch)), seg)
+    unsure = np.zeros(SHAPE, bool)
+    unsure[70:101, 72:88] = True
+    p = probability_with(unsure)
+    p[unsure] = CARVE_BELOW  # not below the threshold
+    assert np.array_equal(carve(seg, distance, BAND, p), seg)
+
+
+def test_a_gap_larger_than_the_cap_is_not_taken() -> None:
+    seg, distance = body()
+    half = np.zeros(SHAPE, bool)
+    half[60:101, 40:120] = True  # the disc's lower half
+    assert np.count_nonzero(half & seg) > REGROW_CAP * np.count_nonzero(seg)
+    assert np.array_equal(carve(seg, distance, BAND, probability_with(half)), seg)
+
+
+def parting_legs(steps: int) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.uint8]]]:
+    """A still body with two legs that start as one and part by 8 degrees a frame each."""
+    h, w = 220, 240
+    frames, masks = [], []
+    for k in range(steps):
+        mask = contour_to_mask(circle_nodes((120.0, 60.0), 30.0, 360), (h, w))
+        for side in (-1, 1):
+            angle = np.deg2rad(side * 8.0 * k)
+            tip = (120 + 80 * np.sin(angle), 80 + 80 * np.cos(angle))
+            cv2.line(mask, (120, 80), (round(tip[0]), round(tip[1])), 255, 14)
+        image = np.where(mask[..., None] > 0, [50, 170, 230], [110, 70, 40]).astype(np.uint8)
+        frames.append(image)
+        masks.append(mask)
+    return frames, masks
+
+
+def test_the_tracker_follows_the_gap_between_parting_legs() -> None:
+    """Without the carving the contour spans the gap between the legs (0.93); with it, 0.99."""
+    frames, masks = parting_legs(5)
+
+    def last_iou(carve_gaps: bool) -> float:
+        tracker = Tracker(mask_to_contour(masks[0], 128), carve_gaps=carve_gaps)
+        for frame in frames:
+            result = tracker.step(frame)
+        return mask_iou(contour_to_mask(result.nodes, masks[-1].shape), masks[-1])
+
+    assert last_iou(True) >= 0.97
+    assert last_iou(False) < 0.95
