@@ -46,9 +46,10 @@ with: strips of object colour under 5 px wide along the background (a banner's e
 shadow's rim) are not taken, a leg or a wing is."""
 REGROW_CAP = 0.15
 """Regrowth of more than 15 % of the cut's object in one frame is background of the
-object's colours coming in (a leak), not a part the contour lost: none is taken."""
+object's colours coming in (a leak), not a part the contour lost: none is taken.  The
+carving and the bridge are held to the same share."""
 CARVE_BELOW = 1 - REGROW_ABOVE
-"""Inside the band's fixed object, pixels at most this object-like that reach the
+"""Inside the band's fixed object, pixels less object-like than this that reach the
 background are a gap that opened (:func:`carve`): as sure of the background as the
 regrowth is of the object (on the thirty training sequences, mean J over five node
 counts 0.7346 at 0.1, 0.7346 at 0.2, 0.7313 at 0.05)."""
