@@ -158,3 +158,30 @@ def decoy_scene(
         return out
 
     return frame(start), frame(after), scene.mask(start), patch
+
+
+def body_with_legs(
+    shape: tuple[int, int],
+    body: tuple[float, float],
+    hip: tuple[int, int],
+    legs: list[list[float]],
+    *,
+    length: float,
+    width: int,
+) -> tuple[list[U8], list[U8]]:
+    """Frames and masks of a still disc (radius 30) with legs swinging from ``hip``.
+
+    ``legs[k]`` holds frame ``k``'s leg angles in degrees (0: straight down, positive:
+    towards +x); each leg is a line ``length`` px long and ``width`` px thick.  The
+    object is orange on dark blue, flat (no noise): the colours alone tell them apart.
+    """
+    frames, masks = [], []
+    for angles in legs:
+        mask = contour_to_mask(circle_nodes(body, 30.0, 360), shape)
+        for angle in np.deg2rad(angles):
+            tip = (hip[0] + length * np.sin(angle), hip[1] + length * np.cos(angle))
+            cv2.line(mask, hip, (round(tip[0]), round(tip[1])), 255, width)
+        image = np.where(mask[..., None] > 0, [50, 170, 230], [110, 70, 40]).astype(np.uint8)
+        frames.append(image)
+        masks.append(mask)
+    return frames, masks

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -10,6 +9,7 @@ from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_con
 from engine.tracking import Tracker
 from engine.tracking.beyond_band import CARVE_BELOW, REGROW_CAP, carve
 from engine.tracking.segmentation import _signed_distance
+from tests.engine.scenes import body_with_legs
 
 BAND = 8.0
 SHAPE = (120, 160)
@@ -69,18 +69,8 @@ def test_a_gap_larger_than_the_cap_is_not_taken() -> None:
 
 def parting_legs(steps: int) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.uint8]]]:
     """A still body with two legs that start as one and part by 8 degrees a frame each."""
-    h, w = 220, 240
-    frames, masks = [], []
-    for k in range(steps):
-        mask = contour_to_mask(circle_nodes((120.0, 60.0), 30.0, 360), (h, w))
-        for side in (-1, 1):
-            angle = np.deg2rad(side * 8.0 * k)
-            tip = (120 + 80 * np.sin(angle), 80 + 80 * np.cos(angle))
-            cv2.line(mask, (120, 80), (round(tip[0]), round(tip[1])), 255, 14)
-        image = np.where(mask[..., None] > 0, [50, 170, 230], [110, 70, 40]).astype(np.uint8)
-        frames.append(image)
-        masks.append(mask)
-    return frames, masks
+    legs = [[-8.0 * k, 8.0 * k] for k in range(steps)]
+    return body_with_legs((220, 240), (120.0, 60.0), (120, 80), legs, length=80, width=14)
 
 
 def test_the_tracker_follows_the_gap_between_parting_legs() -> None:

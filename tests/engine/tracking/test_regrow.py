@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -12,6 +11,7 @@ from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_con
 from engine.tracking import Tracker
 from engine.tracking.beyond_band import REGROW_ABOVE, REGROW_CAP, regrow
 from engine.tracking.segmentation import _signed_distance
+from tests.engine.scenes import body_with_legs
 
 BAND = 8.0
 SHAPE = (120, 160)
@@ -70,17 +70,8 @@ def test_within_the_band_and_on_neutral_pixels_nothing_changes() -> None:
 
 def swinging_leg(steps: int) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.uint8]]]:
     """A still body with a leg that swings by 20 degrees a frame (its tip by 26 px)."""
-    h, w = 200, 240
-    frames, masks = [], []
-    for k in range(steps):
-        mask = contour_to_mask(circle_nodes((120.0, 80.0), 30.0, 360), (h, w))
-        angle = np.deg2rad(-20.0 * k)
-        tip = (120 + 75 * np.sin(angle), 80 + 75 * np.cos(angle))
-        cv2.line(mask, (120, 80), (round(tip[0]), round(tip[1])), 255, 10)
-        image = np.where(mask[..., None] > 0, [50, 170, 230], [110, 70, 40]).astype(np.uint8)
-        frames.append(image)
-        masks.append(mask)
-    return frames, masks
+    legs = [[-20.0 * k] for k in range(steps)]
+    return body_with_legs((200, 240), (120.0, 80.0), (120, 80), legs, length=75, width=10)
 
 
 def test_the_tracker_keeps_a_leg_that_swings_faster_than_the_band(
