@@ -60,7 +60,7 @@ def test_nothing_is_taken_when_it_would_grow_the_object_too_much() -> None:
     assert np.array_equal(bridge(seg, p, remembered), seg)
 
 
-def whole_regionbridge(
+def whole_region_bridge(
     seg: NDArray[np.bool_], p: NDArray[np.float32], remembered: NDArray[np.bool_]
 ) -> NDArray[np.bool_]:
     """``bridge`` as its docstring says it, computed on the whole region (no box)."""
@@ -107,7 +107,7 @@ def test_working_in_the_loose_pieces_box_changes_nothing(seed: int) -> None:
         outline = np.zeros((h, w), np.uint8)
         centre = (int(rng.integers(0, w)), int(rng.integers(0, h)))
         cv2.circle(outline, centre, int(rng.integers(10, 80)), 1, -1)
-        expected = whole_regionbridge(seg, p, outline > 0)
+        expected = whole_region_bridge(seg, p, outline > 0)
         np.testing.assert_array_equal(bridge(seg, p, outline > 0), expected)
         bridged += not np.array_equal(expected, seg)
     assert bridged > 0  # some scenes were bridged

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
@@ -65,6 +68,39 @@ def test_a_gap_larger_than_the_cap_is_not_taken() -> None:
     half[60:101, 40:120] = True  # the disc's lower half
     assert np.count_nonzero(half & seg) > REGROW_CAP * np.count_nonzero(seg)
     assert np.array_equal(carve(seg, distance, BAND, probability_with(half)), seg)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_carving_only_takes_out_clear_background_that_reaches_the_background(seed: int) -> None:
+    """Random objects with random dark blobs: what goes is dark, reaches out, within the cap."""
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(40, 140, 2))
+    body = np.zeros((h, w), np.uint8)
+    for _ in range(int(rng.integers(1, 4))):
+        centre = (int(rng.integers(0, w)), int(rng.integers(0, h)))
+        cv2.circle(body, centre, int(rng.integers(8, 50)), 1, -1)
+    p = np.where(body > 0, 0.95, 0.05).astype(np.float32)
+    for _ in range(int(rng.integers(0, 5))):  # gaps, holes and notches of background
+        start = (int(rng.integers(0, w)), int(rng.integers(0, h)))
+        end = (int(rng.integers(0, w)), int(rng.integers(0, h)))
+        cv2.line(p, start, end, float(rng.choice([0.02, 0.3])), int(rng.integers(1, 14)))
+    seg = body > 0
+    distance = _signed_distance(body)
+    band = float(rng.integers(2, 9))
+    carved = carve(seg, distance, band, p)
+    gone = seg & ~carved
+    assert not np.any(carved & ~seg)  # nothing is added
+    if not gone.any():
+        return
+    assert np.all(p[gone] < CARVE_BELOW)
+    assert np.count_nonzero(gone) <= REGROW_CAP * np.count_nonzero(seg)
+    count, labels = cv2.connectedComponents(gone.astype(np.uint8), connectivity=8)
+    outside = cv2.dilate((~seg).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    for piece in range(1, count):
+        here = labels == piece
+        assert np.any(here & outside)  # each piece reaches the cut's background
+        assert np.any(here & (distance > band))  # and lies partly beyond the band
 
 
 def parting_legs(steps: int) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.uint8]]]:
