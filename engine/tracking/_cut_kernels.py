@@ -164,37 +164,32 @@ def band_graph(
     h, w = distance.shape
     channels = image.shape[2]
     colour, shape, smooth, scale = weights[0], weights[1], weights[2], weights[3]
+    # the free pixels in row-major order; a vectorised test, not a branch per pixel of
+    # the region (most of a large object's region is its fixed interior)
+    pixels = np.flatnonzero(np.abs(distance) <= band).astype(np.int64)
+    count = len(pixels)
     index = np.full(h * w, -1, dtype=np.int32)
-    count = 0
-    for y in range(h):
-        for x in range(w):
-            if abs(distance[y, x]) <= band:
-                index[y * w + x] = count
-                count += 1
-    pixels = np.empty(count, dtype=np.int64)
+    for k in range(count):
+        index[pixels[k]] = k
     source = np.empty(count, dtype=np.float64)
     sink = np.empty(count, dtype=np.float64)
     total = 0.0
     links = 0
-    for y in range(h):
-        for x in range(w):
-            k = index[y * w + x]
-            if k < 0:
-                continue
-            pixels[k] = y * w + x
-            p = min(max(probability[y, x], PROBABILITY_FLOOR), 1.0 - PROBABILITY_FLOOR)
-            d = min(max(distance[y, x] / scale, -SHAPE_CLIP), SHAPE_CLIP)
-            u = colour * math.log(p / (1.0 - p)) + shape * d
-            source[k] = max(u, 0.0)
-            sink[k] = max(-u, 0.0)
-            for dy, dx in ((0, 1), (1, 0)):
-                if y + dy < h and x + dx < w:
-                    diff = 0.0
-                    for c in range(channels):
-                        t = float(image[y, x, c]) - float(image[y + dy, x + dx, c])
-                        diff += t * t
-                    total += diff
-                    links += 1
+    for k in range(count):
+        y, x = pixels[k] // w, pixels[k] % w
+        p = min(max(probability[y, x], PROBABILITY_FLOOR), 1.0 - PROBABILITY_FLOOR)
+        d = min(max(distance[y, x] / scale, -SHAPE_CLIP), SHAPE_CLIP)
+        u = colour * math.log(p / (1.0 - p)) + shape * d
+        source[k] = max(u, 0.0)
+        sink[k] = max(-u, 0.0)
+        for dy, dx in ((0, 1), (1, 0)):
+            if y + dy < h and x + dx < w:
+                diff = 0.0
+                for c in range(channels):
+                    t = float(image[y, x, c]) - float(image[y + dy, x + dx, c])
+                    diff += t * t
+                total += diff
+                links += 1
     contrast = 1.0 / (2.0 * max(total / max(links, 1), 1e-6))
     li = np.empty(2 * count, dtype=np.int32)
     lj = np.empty(2 * count, dtype=np.int32)
