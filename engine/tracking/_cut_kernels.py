@@ -133,6 +133,16 @@ def local_probability(
     return out
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _step(image: NDArray[np.uint8], y: int, x: int, yy: int, xx: int) -> float:
+    """Squared colour difference of two pixels."""
+    diff = 0.0
+    for c in range(image.shape[2]):
+        t = float(image[y, x, c]) - float(image[yy, xx, c])
+        diff += t * t
+    return diff
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def band_graph(
     distance: NDArray[np.float32],
@@ -162,7 +172,6 @@ def band_graph(
     capacities, and the links between free pixels (i, j, capacity).
     """
     h, w = distance.shape
-    channels = image.shape[2]
     colour, shape, smooth, scale = weights[0], weights[1], weights[2], weights[3]
     # the free pixels in row-major order; a vectorised test, not a branch per pixel of
     # the region (most of a large object's region is its fixed interior)
@@ -173,6 +182,9 @@ def band_graph(
         index[pixels[k]] = k
     source = np.empty(count, dtype=np.float64)
     sink = np.empty(count, dtype=np.float64)
+    # each pixel's squared colour step to its right and lower neighbours (-1: none),
+    # computed once for the mean contrast and again used for the links
+    steps = np.full((count, 2), -1.0)
     total = 0.0
     links = 0
     for k in range(count):
@@ -182,13 +194,10 @@ def band_graph(
         u = colour * math.log(p / (1.0 - p)) + shape * d
         source[k] = max(u, 0.0)
         sink[k] = max(-u, 0.0)
-        for dy, dx in ((0, 1), (1, 0)):
+        for n, (dy, dx) in enumerate(((0, 1), (1, 0))):
             if y + dy < h and x + dx < w:
-                diff = 0.0
-                for c in range(channels):
-                    t = float(image[y, x, c]) - float(image[y + dy, x + dx, c])
-                    diff += t * t
-                total += diff
+                steps[k, n] = _step(image, y, x, y + dy, x + dx)
+                total += steps[k, n]
                 links += 1
     contrast = 1.0 / (2.0 * max(total / max(links, 1), 1e-6))
     li = np.empty(2 * count, dtype=np.int32)
@@ -197,17 +206,14 @@ def band_graph(
     m = 0
     for k in range(count):
         y, x = pixels[k] // w, pixels[k] % w
-        for dy, dx in ((0, 1), (1, 0), (0, -1), (-1, 0)):
+        for n, (dy, dx) in enumerate(((0, 1), (1, 0), (0, -1), (-1, 0))):
             yy, xx = y + dy, x + dx
             if yy < 0 or yy >= h or xx < 0 or xx >= w:
                 continue
             other = index[yy * w + xx]
             if other >= 0 and dy + dx < 0:
                 continue  # each free-free link once, from its upper-left end
-            diff = 0.0
-            for c in range(channels):
-                t = float(image[y, x, c]) - float(image[yy, xx, c])
-                diff += t * t
+            diff = steps[k, n] if n < 2 else _step(image, y, x, yy, xx)
             cost = smooth * math.exp(-contrast * diff)
             if other >= 0:
                 li[m], lj[m], lw[m] = k, other, cost
