@@ -223,3 +223,104 @@ def band_graph(
             else:
                 sink[k] += cost
     return pixels, source, sink, li[:m], lj[:m], lw[:m]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def settle(
+    source: NDArray[np.float64],
+    sink: NDArray[np.float64],
+    li: NDArray[np.int32],
+    lj: NDArray[np.int32],
+    lw: NDArray[np.float64],
+) -> tuple[
+    NDArray[np.int8],
+    NDArray[np.int64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int32],
+    NDArray[np.int32],
+    NDArray[np.float64],
+]:
+    """The nodes whose side every minimum cut agrees on, and the graph left for the others.
+
+    A node whose terminal capacities differ by more than the summed capacity of its
+    links is on its stronger terminal's side in every minimum cut: moving it across
+    would cut more than it could uncut.  Once settled, its links to unsettled nodes
+    become their terminal capacities, which may settle them in turn; a node's margin
+    never shrinks as its neighbours settle, so the settled set does not depend on the
+    order.  On the cut's thin bands about half the pixels settle, and the maximum
+    flow on the rest costs a fifth of the whole (the labels are the same).
+
+    Returns each node's side (1 source, -1 sink, 0 unsettled), the unsettled nodes,
+    their source and sink capacities, and the links between them (indices among the
+    unsettled nodes).
+    """
+    n = len(source)
+    m = len(li)
+    src = source.copy()
+    snk = sink.copy()
+    # each node's links, as offsets into one array
+    start = np.zeros(n + 1, dtype=np.int64)
+    for e in range(m):
+        start[li[e] + 1] += 1
+        start[lj[e] + 1] += 1
+    for k in range(n):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    other = np.empty(2 * m, dtype=np.int64)
+    weight = np.empty(2 * m, dtype=np.float64)
+    for e in range(m):
+        a, b = li[e], lj[e]
+        other[fill[a]], weight[fill[a]] = b, lw[e]
+        fill[a] += 1
+        other[fill[b]], weight[fill[b]] = a, lw[e]
+        fill[b] += 1
+    side = np.zeros(n, dtype=np.int8)
+    queued = np.ones(n, dtype=np.bool_)
+    stack = np.arange(n - 1, -1, -1).astype(np.int64)
+    top = n
+    while top > 0:
+        top -= 1
+        k = stack[top]
+        queued[k] = False
+        if side[k] != 0:
+            continue
+        links = 0.0
+        for e in range(start[k], start[k + 1]):
+            if side[other[e]] == 0:
+                links += weight[e]
+        if src[k] - snk[k] > links:
+            side[k] = 1
+        elif snk[k] - src[k] > links:
+            side[k] = -1
+        else:
+            continue
+        for e in range(start[k], start[k + 1]):
+            o = other[e]
+            if side[o] != 0:
+                continue
+            if side[k] > 0:
+                src[o] += weight[e]
+            else:
+                snk[o] += weight[e]
+            if not queued[o]:
+                queued[o] = True
+                stack[top] = o
+                top += 1
+    free = np.flatnonzero(side == 0)
+    renumber = np.full(n, -1, dtype=np.int32)
+    for f in range(len(free)):
+        renumber[free[f]] = f
+    keep = 0
+    for e in range(m):
+        if side[li[e]] == 0 and side[lj[e]] == 0:
+            keep += 1
+    ki = np.empty(keep, dtype=np.int32)
+    kj = np.empty(keep, dtype=np.int32)
+    kw = np.empty(keep, dtype=np.float64)
+    c = 0
+    for e in range(m):
+        if side[li[e]] == 0 and side[lj[e]] == 0:
+            ki[c], kj[c], kw[c] = renumber[li[e]], renumber[lj[e]], lw[e]
+            c += 1
+    return side, free, src[free], snk[free], ki, kj, kw

@@ -220,7 +220,7 @@ def _cut(
     """Object mask of the region: the fixed sides beyond the band, the minimum cut within."""
     import maxflow
 
-    from engine.tracking._cut_kernels import band_graph
+    from engine.tracking._cut_kernels import band_graph, settle
 
     image = np.ascontiguousarray(region)
     image = image[..., None] if image.ndim == 2 else image
@@ -230,12 +230,15 @@ def _cut(
     )
     seg = (distance > band).ravel()
     if len(pixels):
-        graph = maxflow.Graph[float](len(pixels), len(i))
-        nodes = graph.add_nodes(len(pixels))
-        graph.add_edges(i, j, cost, cost)
-        graph.add_grid_tedges(nodes, source, sink)
-        graph.maxflow()
-        seg[pixels] = ~graph.get_grid_segments(nodes)
+        side, free, source, sink, i, j, cost = settle(source, sink, i, j, cost)
+        seg[pixels] = side > 0
+        if len(free):
+            graph = maxflow.Graph[float](len(free), len(i))
+            nodes = graph.add_nodes(len(free))
+            graph.add_edges(i, j, cost, cost)
+            graph.add_grid_tedges(nodes, source, sink)
+            graph.maxflow()
+            seg[pixels[free]] = ~graph.get_grid_segments(nodes)
     return seg.reshape(distance.shape)
 
 
