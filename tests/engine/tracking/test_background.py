@@ -34,11 +34,14 @@ def scene(move: tuple[float, float], pan: tuple[float, float]) -> tuple[U8, U8]:
     return np.asarray(before, np.uint8), np.asarray(after, np.uint8)
 
 
-@pytest.mark.parametrize("origin", [(0, 0), (60, 40)])
-def test_the_background_motion_is_measured_outside_the_contour(origin: tuple[int, int]) -> None:
+@pytest.mark.parametrize("coarse", [False, True])
+@pytest.mark.parametrize("origin", [(0, 0), (60, 40), (61, 41)])
+def test_the_background_motion_is_measured_outside_the_contour(
+    origin: tuple[int, int], coarse: bool
+) -> None:
     before, after = scene((6.0, 0.0), (-3.0, 2.0))
     x0, y0 = origin
-    found = background_motion(before[y0:, x0:], after[y0:, x0:], DISC, origin)
+    found = background_motion(before[y0:, x0:], after[y0:, x0:], DISC, origin, coarse=coarse)
     assert found is not None
     # frame coordinates whatever the region: a point of the ground moves by the pan
     point = np.array([250.0, 60.0])
@@ -49,8 +52,10 @@ def test_the_background_motion_is_measured_outside_the_contour(origin: tuple[int
 
 def test_a_flat_background_has_no_measurable_motion() -> None:
     flat = np.full((H, W), 128, np.uint8)
-    assert background_motion(flat, flat, DISC) is None
-    assert background_motion(flat[:1], flat[:1], DISC) is None
+    for coarse in (False, True):
+        assert background_motion(flat, flat, DISC, coarse=coarse) is None
+        assert background_motion(flat[:1], flat[:1], DISC, coarse=coarse) is None
+        assert background_motion(flat[:3, :3], flat[:3, :3], DISC, coarse=coarse) is None
 
 
 def test_the_whole_frame_background_leaves_the_objects_out() -> None:
