@@ -113,6 +113,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("revealed_background", False)  # and before uncovered background
         options.setdefault("bridge_strips", False)  # and before the strips bridged
         options.setdefault("carve_gaps", False)  # and before the gaps carved
+        options.setdefault("full_resolution_edges", False)  # and before the second cut
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])

@@ -189,6 +189,13 @@ class TrackerOptions:
         five node counts: chosen in all five folds, J 0.735 against 0.729, every
         held-out fold up (0.853 / 0.697 / 0.687 / 0.652 / 0.784 against 0.849 /
         0.691 / 0.672 / 0.650 / 0.783).
+    full_resolution_edges : bool
+        A large object (its cut's band over 12,000 pixels), cut at half resolution to
+        keep the frame's time, has its boundary placed to the pixel by a second cut at
+        full resolution within 2 px of the first's (the cut's
+        :data:`engine.tracking.segmentation.FINE_BAND`).  Default True: without it a
+        large object's boundary is placed to 2 px.  Cross-validated on the thirty
+        training sequences over five node counts: see ``docs/tracking-log.md``.
 
     Raises
     ------
@@ -220,6 +227,7 @@ class TrackerOptions:
     revealed_background: bool = True
     bridge_strips: bool = True
     carve_gaps: bool = True
+    full_resolution_edges: bool = True
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -264,6 +272,7 @@ class TrackerOptions:
             "revealed_background",
             "bridge_strips",
             "carve_gaps",
+            "full_resolution_edges",
         ):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false; got {getattr(self, name)!r}")

@@ -192,7 +192,7 @@ class Tracker:
             opts.search_radius, opts.occlusion, opts.rigid_behind, opts.revealed_background
         )
         self.segmentation: Segmentation = segmentation or BandCut(
-            opts.cut_band, opts.bridge_strips, opts.carve_gaps
+            opts.cut_band, opts.bridge_strips, opts.carve_gaps, opts.full_resolution_edges
         )
         for name, stage, kind in (
             ("motion", self.motion, MotionModel),

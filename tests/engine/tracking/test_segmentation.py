@@ -10,17 +10,20 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from engine.geometry import circle_nodes, contour_to_mask, mask_iou
+from engine.geometry import circle_nodes, contour_to_mask, mask_iou, resample
 from engine.tracking import BandCut, Maps, Tracker
 from engine.tracking._cut_kernels import PROBABILITY_FLOOR, SHAPE_CLIP
 from engine.tracking.appearance import quantise
 from engine.tracking.local_colour import LocalColour
 from engine.tracking.segmentation import (
     COLOUR_WEIGHT,
+    FINE_BAND,
     SHAPE_SCALE,
     SHAPE_WEIGHT,
     SMOOTHNESS,
     _cut,
+    _full_resolution,
+    _scale,
     _signed_distance,
 )
 
@@ -115,6 +118,61 @@ def test_the_cut_snaps_a_contour_that_is_off_to_the_edge() -> None:
     before = mask_iou(contour_to_mask(off, truth.shape), truth)
     after = mask_iou(contour_to_mask(found, truth.shape), truth)
     assert before < 0.8 < 0.95 < after
+
+
+def square_frame(lo: int, hi: int, size: int = 320) -> tuple[U8, U8]:
+    """A bright textured square (rows and columns ``lo`` to ``hi - 1``) on a dark one."""
+    rng = np.random.default_rng(0)
+    truth = np.zeros((size, size), np.uint8)
+    truth[lo:hi, lo:hi] = 1
+    image = np.where(truth[..., None] > 0, [60, 160, 220], [90, 60, 30]).astype(np.float64)
+    image += rng.normal(0, 6, image.shape)
+    return np.clip(image, 0, 255).astype(np.uint8), truth
+
+
+@pytest.mark.parametrize(("lo", "hi"), [(40, 279), (41, 279), (43, 277)])
+def test_a_large_objects_edge_is_placed_to_the_pixel_by_the_second_cut(lo: int, hi: int) -> None:
+    image, truth = square_frame(lo, hi)
+    a, b = lo + 3.0, hi - 4.0  # the chain left it 3 pixels inside
+    off = resample(np.array([[a, a], [b, a], [b, b], [a, b]]), 128, closed=True)
+    assert _scale(off, 8) == 2  # cut at half resolution
+    wrong = {}
+    for fine in (False, True):
+        stage = BandCut(8, fine=fine)
+        stage.start(image, off)
+        found = stage.segment(image, global_maps(image), off, off)
+        assert found is not None
+        wrong[fine] = np.count_nonzero((contour_to_mask(found, truth.shape) > 0) != (truth > 0))
+    assert wrong[False] > 2 * (hi - lo)  # half a pixel off all round, or more
+    assert wrong[True] <= 4  # a corner pixel at most
+
+
+def test_the_second_cut_is_only_for_large_objects() -> None:
+    image, _ = disc_frame(30.0)
+    off = circle_nodes((80.0, 60.0), 26.0, 128)
+    found = []
+    for fine in (False, True):
+        stage = BandCut(8, fine=fine)
+        stage.start(image, circle_nodes((80.0, 60.0), 30.0, 128))
+        found.append(stage.segment(image, global_maps(image), off, off))
+    np.testing.assert_array_equal(found[0], found[1])
+
+
+def test_the_second_cut_moves_the_edge_by_at_most_its_band() -> None:
+    rng = np.random.default_rng(1)
+    region = rng.integers(0, 256, (200, 240, 3), dtype=np.uint8)
+    piece = np.zeros((100, 120), bool)
+    piece[30:70, 40:80] = True
+    for p in (0.999, 0.001):  # the colours push out everywhere, or in
+        found = _full_resolution(piece, region, np.full(piece.shape, p, np.float32), 256)
+        mask = contour_to_mask(found, region.shape[:2]) > 0
+        scaled = np.zeros((200, 240), np.uint8)
+        scaled[60:140, 80:160] = 1
+        grown = cv2.dilate(scaled, np.ones((3, 3), np.uint8), iterations=FINE_BAND)
+        shrunk = cv2.erode(scaled, np.ones((3, 3), np.uint8), iterations=FINE_BAND)
+        assert np.all(mask <= (grown > 0)) and np.all(mask >= (shrunk > 0))
+        moved = np.count_nonzero(mask != (scaled > 0))
+        assert moved > 1.5 * 4 * 80  # it did move, about two pixels all round
 
 
 def test_the_cut_moves_the_boundary_by_at_most_the_band() -> None:

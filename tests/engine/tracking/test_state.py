@@ -108,7 +108,8 @@ def test_far_background_is_kept_through_a_state_and_read_as_off_when_missing(
 
 
 @pytest.mark.parametrize(
-    "option", ["rigid_behind", "revealed_background", "bridge_strips", "carve_gaps"]
+    "option",
+    ["rigid_behind", "revealed_background", "bridge_strips", "carve_gaps", "full_resolution_edges"],
 )
 def test_an_option_added_later_is_kept_through_a_state_and_read_as_off_when_missing(
     option: str, frames: list[U8]
@@ -288,6 +289,7 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
         revealed_background=False,
         bridge_strips=False,
         carve_gaps=False,
+        full_resolution_edges=False,
     )
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])

@@ -399,6 +399,8 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("bridge_strips", "no"),
     ("carve_gaps", 1.0),
     ("carve_gaps", "yes"),
+    ("full_resolution_edges", 0),
+    ("full_resolution_edges", "true"),
 ]
 
 
