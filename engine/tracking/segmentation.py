@@ -270,7 +270,7 @@ def _main_piece(seg: NDArray[np.bool_], prior: NDArray[np.uint8]) -> NDArray[np.
         return None
     share = np.bincount(labels[prior > 0], minlength=pieces)[1:]
     best = int(np.argmax(share))
-    piece = labels == best + 1
+    piece: NDArray[np.bool_] = labels == best + 1
     size = int(np.count_nonzero(piece))
     second = np.sort(share)[-2] if len(share) > 1 else 0
     if (
@@ -312,6 +312,6 @@ def _full_resolution(
         layers += eroded + dilated
     # 0 .. 2 FINE_BAND + 1 layers counted from far outside to deep inside: +-0.5 at the edge
     distance = layers.astype(np.float32) - np.float32(FINE_BAND + 0.5)
-    upscaled = cv2.resize(probability, size, interpolation=cv2.INTER_LINEAR)
+    upscaled = np.asarray(cv2.resize(probability, size, interpolation=cv2.INTER_LINEAR), np.float32)
     seg = _cut(distance, FINE_BAND, region[: 2 * h, : 2 * w], upscaled, 1)
     return mask_to_contour(seg if seg.any() else inside, count)
