@@ -38,7 +38,7 @@ def warm_up() -> None:
         fg, bg = cut.learn_windows(picture, 5, 3, flags, flags, centres, 1, 512)
         half = np.full((2, 2), 0.5, np.float32)
         cut.local_probability(picture, 5, 3, flags, centres, 1, fg, bg, 12.0, 1.0, half)
-        cut.band_graph(half, 1.0, picture, half, np.ones(4))
+        cut.settle(*cut.band_graph(half, 1.0, picture, half, np.ones(4))[1:])
         colours = light.grid_sample(picture, 8)
         light.interior(flags, 0, (0, 0), 1, picture)
         light.carried(np.zeros((1, 2), np.int64), colours, np.zeros((2, 3)), picture)

@@ -221,12 +221,13 @@ def test_a_gap_opening_between_limbs_is_not_bridged() -> None:
     assert _mean_iou("articulated", 1, revealed_background=False) < 0.92
 
 
-def test_the_contour_does_not_shrink_behind_a_static_bar() -> None:
-    """Synthetic ``occluder``, seed 16: the object moves across a static bar.
+def test_the_contour_does_not_shrink_behind_a_bar() -> None:
+    """Synthetic ``occluder``, seed 20: the bar lies across the object for many frames.
 
     The bar looks like background and splits the object; without the bridge
     (:func:`engine.tracking.beyond_band.bridge`) the contour kept the part on one
-    side and shrank with it to nothing (0.64).
+    side and shrank with it to a twentieth of the object (0.61 over the clip).  (Seed
+    16 showed it until the motion contrast fitted the background at half resolution.)
     """
-    assert _mean_iou("occluder", 16, bridge_strips=True) >= 0.95
-    assert _mean_iou("occluder", 16, bridge_strips=False) < 0.8
+    assert _mean_iou("occluder", 20, bridge_strips=True) >= 0.95
+    assert _mean_iou("occluder", 20, bridge_strips=False) < 0.8
