@@ -155,7 +155,6 @@ def band_graph(
     NDArray[np.float64],
     NDArray[np.float64],
     NDArray[np.int32],
-    NDArray[np.int32],
     NDArray[np.float64],
 ]:
     """The graph of the band's pixels for a binary cut (object = source side).
@@ -169,7 +168,8 @@ def band_graph(
     sensitive Potts, as in GrabCut).
 
     Returns the flat indices of the free pixels, their source and sink
-    capacities, and the links between free pixels (i, j, capacity).
+    capacities, and for each its free neighbours to the right, below, left and
+    above (their indices, -1 for none) and the capacities of those links.
     """
     h, w = distance.shape
     colour, shape, smooth, scale = weights[0], weights[1], weights[2], weights[3]
@@ -200,10 +200,8 @@ def band_graph(
                 total += steps[k, n]
                 links += 1
     contrast = 1.0 / (2.0 * max(total / max(links, 1), 1e-6))
-    li = np.empty(2 * count, dtype=np.int32)
-    lj = np.empty(2 * count, dtype=np.int32)
-    lw = np.empty(2 * count, dtype=np.float64)
-    m = 0
+    neighbours = np.full((count, 4), -1, dtype=np.int32)
+    capacities = np.zeros((count, 4), dtype=np.float64)
     for k in range(count):
         y, x = pixels[k] // w, pixels[k] % w
         for n, (dy, dx) in enumerate(((0, 1), (1, 0), (0, -1), (-1, 0))):
@@ -211,27 +209,26 @@ def band_graph(
             if yy < 0 or yy >= h or xx < 0 or xx >= w:
                 continue
             other = index[yy * w + xx]
-            if other >= 0 and dy + dx < 0:
+            if other >= 0 and n >= 2:
                 continue  # each free-free link once, from its upper-left end
             diff = steps[k, n] if n < 2 else _step(image, y, x, yy, xx)
             cost = smooth * math.exp(-contrast * diff)
-            if other >= 0:
-                li[m], lj[m], lw[m] = k, other, cost
-                m += 1
+            if other >= 0:  # and the same link seen from the other end
+                neighbours[k, n], capacities[k, n] = other, cost
+                neighbours[other, n + 2], capacities[other, n + 2] = k, cost
             elif distance[yy, xx] > 0:
                 source[k] += cost
             else:
                 sink[k] += cost
-    return pixels, source, sink, li[:m], lj[:m], lw[:m]
+    return pixels, source, sink, neighbours, capacities
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def settle(
     source: NDArray[np.float64],
     sink: NDArray[np.float64],
-    li: NDArray[np.int32],
-    lj: NDArray[np.int32],
-    lw: NDArray[np.float64],
+    neighbours: NDArray[np.int32],
+    capacities: NDArray[np.float64],
 ) -> tuple[
     NDArray[np.int8],
     NDArray[np.int64],
@@ -248,33 +245,17 @@ def settle(
     would cut more than it could uncut.  Once settled, its links to unsettled nodes
     become their terminal capacities, which may settle them in turn; a node's margin
     never shrinks as its neighbours settle, so the settled set does not depend on the
-    order.  On the cut's thin bands about half the pixels settle, and the maximum
+    order.  On the cut's thin bands half the pixels or more settle, and the maximum
     flow on the rest costs a fifth of the whole (the labels are the same).
 
-    Returns each node's side (1 source, -1 sink, 0 unsettled), the unsettled nodes,
-    their source and sink capacities, and the links between them (indices among the
-    unsettled nodes).
+    ``neighbours`` and ``capacities`` are :func:`band_graph`'s.  Returns each node's
+    side (1 source, -1 sink, 0 unsettled), the unsettled nodes, their source and sink
+    capacities, and the links between them (i, j among the unsettled nodes, capacity;
+    each once, in :func:`band_graph`'s order).
     """
     n = len(source)
-    m = len(li)
     src = source.copy()
     snk = sink.copy()
-    # each node's links, as offsets into one array
-    start = np.zeros(n + 1, dtype=np.int64)
-    for e in range(m):
-        start[li[e] + 1] += 1
-        start[lj[e] + 1] += 1
-    for k in range(n):
-        start[k + 1] += start[k]
-    fill = start[:-1].copy()
-    other = np.empty(2 * m, dtype=np.int64)
-    weight = np.empty(2 * m, dtype=np.float64)
-    for e in range(m):
-        a, b = li[e], lj[e]
-        other[fill[a]], weight[fill[a]] = b, lw[e]
-        fill[a] += 1
-        other[fill[b]], weight[fill[b]] = a, lw[e]
-        fill[b] += 1
     side = np.zeros(n, dtype=np.int8)
     queued = np.ones(n, dtype=np.bool_)
     stack = np.arange(n - 1, -1, -1).astype(np.int64)
@@ -286,23 +267,24 @@ def settle(
         if side[k] != 0:
             continue
         links = 0.0
-        for e in range(start[k], start[k + 1]):
-            if side[other[e]] == 0:
-                links += weight[e]
+        for e in range(4):
+            o = neighbours[k, e]
+            if o >= 0 and side[o] == 0:
+                links += capacities[k, e]
         if src[k] - snk[k] > links:
             side[k] = 1
         elif snk[k] - src[k] > links:
             side[k] = -1
         else:
             continue
-        for e in range(start[k], start[k + 1]):
-            o = other[e]
-            if side[o] != 0:
+        for e in range(4):
+            o = neighbours[k, e]
+            if o < 0 or side[o] != 0:
                 continue
             if side[k] > 0:
-                src[o] += weight[e]
+                src[o] += capacities[k, e]
             else:
-                snk[o] += weight[e]
+                snk[o] += capacities[k, e]
             if not queued[o]:
                 queued[o] = True
                 stack[top] = o
@@ -311,16 +293,14 @@ def settle(
     renumber = np.full(n, -1, dtype=np.int32)
     for f in range(len(free)):
         renumber[free[f]] = f
-    keep = 0
-    for e in range(m):
-        if side[li[e]] == 0 and side[lj[e]] == 0:
-            keep += 1
-    ki = np.empty(keep, dtype=np.int32)
-    kj = np.empty(keep, dtype=np.int32)
-    kw = np.empty(keep, dtype=np.float64)
-    c = 0
-    for e in range(m):
-        if side[li[e]] == 0 and side[lj[e]] == 0:
-            ki[c], kj[c], kw[c] = renumber[li[e]], renumber[lj[e]], lw[e]
-            c += 1
-    return side, free, src[free], snk[free], ki, kj, kw
+    li = np.empty(2 * len(free), dtype=np.int32)
+    lj = np.empty(2 * len(free), dtype=np.int32)
+    lw = np.empty(2 * len(free), dtype=np.float64)
+    m = 0
+    for k in free:
+        for e in range(2):  # right and below: each link once
+            o = neighbours[k, e]
+            if o >= 0 and side[o] == 0:
+                li[m], lj[m], lw[m] = renumber[k], renumber[o], capacities[k, e]
+                m += 1
+    return side, free, src[free], snk[free], li[:m], lj[:m], lw[:m]

@@ -242,12 +242,12 @@ def _cut(
     image = np.ascontiguousarray(region)
     image = image[..., None] if image.ndim == 2 else image
     weights = np.array([COLOUR_WEIGHT, SHAPE_WEIGHT, SMOOTHNESS, SHAPE_SCALE / scale])
-    pixels, source, sink, i, j, cost = band_graph(
+    pixels, source, sink, neighbours, capacities = band_graph(
         distance, band, image, np.ascontiguousarray(probability, dtype=np.float32), weights
     )
     seg = (distance > band).ravel()
     if len(pixels):
-        side, free, source, sink, i, j, cost = settle(source, sink, i, j, cost)
+        side, free, source, sink, i, j, cost = settle(source, sink, neighbours, capacities)
         seg[pixels] = side > 0
         if len(free):
             graph = maxflow.Graph[float](len(free), len(i))
