@@ -192,10 +192,11 @@ class TrackerOptions:
     full_resolution_edges : bool
         A large object (its cut's band over 12,000 pixels), cut at half resolution to
         keep the frame's time, has its boundary placed to the pixel by a second cut at
-        full resolution within 2 px of the first's (the cut's
-        :data:`engine.tracking.segmentation.FINE_BAND`).  Default True: without it a
-        large object's boundary is placed to 2 px.  Cross-validated on the thirty
-        training sequences over five node counts: see ``docs/tracking-log.md``.
+        full resolution within 2 px inside the first's boundary and 1 px outside
+        (:data:`engine.tracking.segmentation.FINE_INSIDE`, ``FINE_OUTSIDE``).  Default
+        True: without it a large object's boundary is placed to 2 px.  Cross-validated
+        on the thirty training sequences over five node counts: chosen in all five folds
+        (``docs/tracking-log.md``).
 
     Raises
     ------

@@ -66,12 +66,15 @@ MAX_BAND_PIXELS = 12_000
 """A band with more pixels than this (a large object's) is cut at half
 resolution: a pixel there is still under 1 % of the object's width, and the
 cut stays within the frame's time budget."""
-FINE_BAND = 2
-"""Pixels on each side of a half-resolution cut's boundary that the second,
-full-resolution cut may relabel (:attr:`TrackerOptions.full_resolution_edges`): the
-half-resolution boundary is placed to 2 px, and this much freedom places it to the
-pixel.  On the thirty training sequences over five node counts 1 / 2 / 3 px gave J
-0.7389 / 0.7432 / 0.7374 (``docs/tracking-log.md``)."""
+FINE_INSIDE = 2
+"""Pixels inside a half-resolution cut's boundary that the second, full-resolution cut
+may relabel (:attr:`TrackerOptions.full_resolution_edges`): the half-resolution
+boundary is placed to 2 px, and this much freedom places it to the pixel."""
+FINE_OUTSIDE = 1
+"""Pixels outside it that the second cut may relabel.  On the thirty training sequences
+over five node counts, inside / outside 1 / 1, 1 / 2, 2 / 1, 2 / 2 and 3 / 3 gave J 0.7384,
+0.7402, 0.7420, 0.7426 and 0.7374 (``docs/tracking-log.md``): the layer outside costs a
+quarter of the cut's time for 0.0006."""
 MIN_OVERLAP = 0.3
 """The kept piece must cover 30 % of the chain's silhouette: a cut that lost
 most of the object is not trusted over the chain."""
@@ -95,7 +98,7 @@ class BandCut:
     fine : bool, default False
         :attr:`TrackerOptions.full_resolution_edges`: a large object's cut, made at half
         resolution, is followed by a second cut at full resolution within
-        :data:`FINE_BAND` pixels of its boundary.
+        :data:`FINE_INSIDE` / :data:`FINE_OUTSIDE` pixels of its boundary.
     """
 
     def __init__(
@@ -291,8 +294,9 @@ def _full_resolution(
     """``[x, y]`` contour (full-resolution region pixels) of a half-resolution piece, recut.
 
     The piece (of a cut at half resolution, whose p(object) is ``probability``) is
-    scaled up, and every pixel within :data:`FINE_BAND` of its boundary is labelled
-    again by :func:`_cut` on the full-resolution ``region``: the colour term read
+    scaled up, and every pixel within :data:`FINE_INSIDE` inside its boundary or
+    :data:`FINE_OUTSIDE` outside is labelled again by :func:`_cut` on the
+    full-resolution ``region``: the colour term read
     from ``probability`` scaled up, the smoothness from the full-resolution edges.
     "Within" is counted in 4-connected layers, not as the Euclidean distance: a
     few erosions and dilations cost a fraction of a distance transform of a large
@@ -306,12 +310,18 @@ def _full_resolution(
     # a pixel's layer: how many erosions it survives (inside) or dilations reach it
     layers = inside.copy()
     eroded, dilated = inside, inside
-    for _ in range(FINE_BAND):
+    for _ in range(FINE_INSIDE):
         eroded = np.asarray(cv2.erode(eroded, _CROSS))
+        layers += eroded
+    for _ in range(FINE_OUTSIDE):
         dilated = np.asarray(cv2.dilate(dilated, _CROSS))
-        layers += eroded + dilated
-    # 0 .. 2 FINE_BAND + 1 layers counted from far outside to deep inside: +-0.5 at the edge
-    distance = layers.astype(np.float32) - np.float32(FINE_BAND + 0.5)
+        layers += dilated
+    # layers 0 .. FINE_OUTSIDE + 1 + FINE_INSIDE from far outside to deep inside; as
+    # distances: +-0.5 at the edge, the ones beyond the free layers fixed
+    band = max(FINE_INSIDE, FINE_OUTSIDE)
+    table = np.arange(256, dtype=np.float32) - np.float32(FINE_OUTSIDE + 0.5)
+    table[0], table[FINE_OUTSIDE + FINE_INSIDE + 1] = -band - 0.5, band + 0.5
+    distance = np.asarray(cv2.LUT(layers, table), np.float32)
     upscaled = np.asarray(cv2.resize(probability, size, interpolation=cv2.INTER_LINEAR), np.float32)
-    seg = _cut(distance, FINE_BAND, region[: 2 * h, : 2 * w], upscaled, 1)
+    seg = _cut(distance, band, region[: 2 * h, : 2 * w], upscaled, 1)
     return mask_to_contour(seg if seg.any() else inside, count)

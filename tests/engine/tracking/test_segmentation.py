@@ -17,7 +17,8 @@ from engine.tracking.appearance import quantise
 from engine.tracking.local_colour import LocalColour
 from engine.tracking.segmentation import (
     COLOUR_WEIGHT,
-    FINE_BAND,
+    FINE_INSIDE,
+    FINE_OUTSIDE,
     SHAPE_SCALE,
     SHAPE_WEIGHT,
     SMOOTHNESS,
@@ -144,7 +145,7 @@ def test_a_large_objects_edge_is_placed_to_the_pixel_by_the_second_cut(lo: int, 
         assert found is not None
         wrong[fine] = np.count_nonzero((contour_to_mask(found, truth.shape) > 0) != (truth > 0))
     assert wrong[False] > 2 * (hi - lo)  # half a pixel off all round, or more
-    assert wrong[True] <= 4  # a corner pixel at most
+    assert wrong[True] <= 20  # a few pixels at the corners
 
 
 def test_the_second_cut_is_only_for_large_objects() -> None:
@@ -163,17 +164,19 @@ def test_the_second_cut_moves_the_edge_by_at_most_its_band() -> None:
     region = rng.integers(0, 256, (200, 240, 3), dtype=np.uint8)
     piece = np.zeros((100, 120), bool)
     piece[30:70, 40:80] = True
-    for p in (0.999, 0.001):  # the colours push out everywhere, or in
+    scaled = np.zeros((200, 240), np.uint8)
+    scaled[60:140, 80:160] = 1
+    square = np.ones((3, 3), np.uint8)
+    grown = cv2.dilate(scaled, square, iterations=FINE_OUTSIDE) > 0
+    shrunk = cv2.erode(scaled, square, iterations=FINE_INSIDE) > 0
+    # the colours push out everywhere, or in
+    for p, layers in ((0.999, FINE_OUTSIDE), (0.001, FINE_INSIDE)):
         found = _full_resolution(piece, region, np.full(piece.shape, p, np.float32), 256)
         mask = contour_to_mask(found, region.shape[:2]) > 0
-        scaled = np.zeros((200, 240), np.uint8)
-        scaled[60:140, 80:160] = 1
-        grown = cv2.dilate(scaled, np.ones((3, 3), np.uint8), iterations=FINE_BAND)
-        shrunk = cv2.erode(scaled, np.ones((3, 3), np.uint8), iterations=FINE_BAND)
-        assert np.all(mask <= (grown > 0))
-        assert np.all(mask >= (shrunk > 0))
+        assert np.all(mask <= grown)
+        assert np.all(mask >= shrunk)
         moved = np.count_nonzero(mask != (scaled > 0))
-        assert moved > 1.5 * 4 * 80  # it did move, about two pixels all round
+        assert moved > 0.75 * layers * 4 * 80  # it did move, as far as it may all round
 
 
 def test_the_cut_moves_the_boundary_by_at_most_the_band() -> None:
