@@ -8,6 +8,8 @@ import math
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, resample
@@ -90,6 +92,53 @@ def test_the_cut_is_the_minimum_energy_labelling(seed: int) -> None:
             labels[y, x] = bit
         best = min(best, energy(labels, distance, band, image, probability))
     assert energy(found, distance, band, image, probability) == pytest.approx(best, abs=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), sure=st.floats(0.0, 1.0))
+def test_settling_keeps_the_minimum_cut(seed: int, sure: float) -> None:
+    """The settled cut's energy is the plain maximum flow's, on random bands.
+
+    ``sure`` pulls p(object) towards 0 or 1, from bands where nothing settles to bands
+    where nearly everything does.
+    """
+    import maxflow
+
+    from engine.tracking._cut_kernels import band_graph, settle
+
+    rng = np.random.default_rng(seed)
+    h, w = 14, 16
+    inside = np.zeros((h, w), np.uint8)
+    inside[3:11, 4:12] = 1
+    distance = _signed_distance(inside)
+    band = 2.0
+    image = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    noise = rng.uniform(0.0, 1.0, (h, w))
+    probability = np.clip(0.5 + (noise - 0.5) * (1 + 20 * sure), 0, 1).astype(np.float32)
+    found = _cut(distance, band, image, probability, 1)
+    # the plain flow on the whole band, without the settling
+    weights = np.array([COLOUR_WEIGHT, SHAPE_WEIGHT, SMOOTHNESS, SHAPE_SCALE])
+    pixels, source, sink, neighbours, capacities = band_graph(
+        distance, band, image, probability, weights
+    )
+    everything = settle(np.zeros_like(source), np.zeros_like(sink), neighbours, capacities)
+    assert not everything[0].any()  # no terminal weights: nothing settles
+    _, _, _, _, i, j, cost = everything
+    graph = maxflow.Graph[float](len(pixels), len(i))
+    nodes = graph.add_nodes(len(pixels))
+    graph.add_edges(i, j, cost, cost)
+    graph.add_grid_tedges(nodes, source, sink)
+    graph.maxflow()
+    plain = (distance > band).ravel()
+    plain[pixels] = ~graph.get_grid_segments(nodes)
+    plain = plain.reshape(h, w)
+    e_found = energy(found, distance, band, image, probability)
+    e_plain = energy(plain, distance, band, image, probability)
+    assert e_found == pytest.approx(e_plain, rel=1e-9, abs=1e-9)
+    side = settle(source, sink, neighbours, capacities)[0]
+    settled = pixels[side != 0]
+    # every settled pixel is where the plain flow put it
+    np.testing.assert_array_equal(found.ravel()[settled], plain.ravel()[settled])
 
 
 def disc_frame(radius: float, centre: tuple[float, float] = (80.0, 60.0)) -> tuple[U8, U8]:
