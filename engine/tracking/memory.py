@@ -45,6 +45,9 @@ class Memory:
         (:class:`~engine.tracking.confidence.Evidence`).
     usual_count : int
         Frames counted in ``usual`` so far.
+    reacquired : bool
+        Whether the current run of misses already ended in a re-acquisition (the
+        remembered shape was put back once; it is not searched for again on the way back).
     """
 
     misses: int
@@ -54,6 +57,7 @@ class Memory:
     outline: NDArray[np.float64] | None = None
     usual: NDArray[np.float64] = field(default_factory=lambda: np.zeros(2))
     usual_count: int = 0
+    reacquired: bool = False
 
     @classmethod
     def fresh(cls, nodes: NDArray[np.float64]) -> Memory:
@@ -76,8 +80,8 @@ class Memory:
             self.usual_count += 1
 
     def to_state(self) -> dict[str, Any]:
-        """``{"misses", "probation", "shape", "hold", "outline", "usual"}``, JSON-able
-        (``"usual"``: ``[inside, outside, frames counted]``)."""
+        """``{"misses", "probation", "shape", "hold", "outline", "usual", "reacquired"}``,
+        JSON-able (``"usual"``: ``[inside, outside, frames counted]``)."""
         return {
             "misses": self.misses,
             "probation": self.probation,
@@ -85,6 +89,7 @@ class Memory:
             "hold": self.hold.tolist(),
             "outline": None if self.outline is None else self.outline.tolist(),
             "usual": [float(self.usual[0]), float(self.usual[1]), self.usual_count],
+            "reacquired": self.reacquired,
         }
 
     @classmethod
@@ -92,7 +97,8 @@ class Memory:
         """Inverse of :meth:`to_state` for a contour of ``nodes`` nodes; ValueError if malformed.
 
         A state without ``"outline"`` (written before the shape memory) has none; one
-        without ``"usual"`` (written before it) counts the usual look from its next frames.
+        without ``"usual"`` (written before it) counts the usual look from its next frames;
+        one without ``"reacquired"`` (written before it) has not re-acquired.
         """
         outline = state.get("outline")
         usual = state.get("usual", [0.0, 0.0, 0])
@@ -102,6 +108,9 @@ class Memory:
         frames = count(usual[2])
         if frames > USUAL_FRAMES:
             raise ValueError(f"usual counts at most {USUAL_FRAMES} frames; got {frames}")
+        reacquired = state.get("reacquired", False)
+        if not isinstance(reacquired, bool):
+            raise ValueError(f"reacquired must be true or false; got {reacquired!r}")
         return cls(
             count(state["misses"]),
             count(state["probation"]),
@@ -110,4 +119,5 @@ class Memory:
             None if outline is None else as_nodes(outline),
             means,
             frames,
+            reacquired,
         )

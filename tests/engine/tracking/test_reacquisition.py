@@ -106,6 +106,8 @@ def test_a_state_taken_mid_search_resumes_exactly() -> None:
         ("usual", [0.8, 0.2, 11]),
         ("usual", [0.8, 0.2, -1]),
         ("usual", "typical"),
+        ("reacquired", 1),
+        ("reacquired", "yes"),
     ],
 )
 def test_a_malformed_search_state_is_refused(key: str, value: object) -> None:
@@ -136,3 +138,37 @@ def test_an_object_back_from_hiding_is_not_held_to_where_the_contour_drifted(see
         ious.append(mask_iou(contour_to_mask(result.nodes, mask.shape), mask))
     back = max(i for i, seen in enumerate(seq.visible) if not seen) + 1
     assert min(ious[back + 3 :]) >= 0.95
+
+
+def test_an_object_back_from_hiding_is_found_with_its_remembered_shape() -> None:
+    # hidden for 7 frames, the contour shrank into a loop over the occluder; when the
+    # object came back, that loop lay half on it and scored as tracked, so it was kept
+    # (J about 0.16 to the end).  Back after an absence, the remembered shape is now
+    # searched for as well and the better-scoring of the two wins.
+    from engine.geometry import mask_to_contour
+    from engine.testing.synthetic import make_sequence
+
+    seq = make_sequence("hidden", seed=9, length=40)
+    tracker = Tracker(mask_to_contour(seq.masks[0], 128))
+    ious = []
+    for frame, mask in zip(seq.frames, seq.masks, strict=True):
+        result = tracker.step(frame)
+        ious.append(mask_iou(contour_to_mask(result.nodes, mask.shape), mask))
+    back = max(i for i, seen in enumerate(seq.visible) if not seen) + 1
+    assert min(ious[back + 3 :]) >= 0.95
+
+
+def test_a_state_written_before_the_return_search_has_not_reacquired() -> None:
+    frames = jumping()
+    tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
+    for frame, _ in frames[:7]:  # the jump at frame 4, re-acquired at frame 6
+        tracker.step(frame)
+    state = copy.deepcopy(tracker.to_state())
+    assert state["search"]["reacquired"] is True  # not to be searched for again on the way back
+    restored = Tracker.from_state(state)
+    for frame, _ in frames[7:]:
+        a, b = tracker.step(frame), restored.step(frame)
+        np.testing.assert_array_equal(a.nodes, b.nodes)
+    assert restored.to_state()["search"]["reacquired"] is False  # back to tracking
+    del state["search"]["reacquired"]
+    assert Tracker.from_state(state).to_state()["search"]["reacquired"] is False
