@@ -33,6 +33,21 @@ def jumping(before: int = 4, after: int = 8) -> list[tuple[U8, U8]]:
     return [scene((90.0, 120.0))] * before + [scene((240.0, 120.0))] * after
 
 
+def ious_after_hiding(seed: int) -> list[float]:
+    """J of every frame from the third after the generated ``hidden`` object reappears."""
+    from engine.geometry import mask_to_contour
+    from engine.testing.synthetic import make_sequence
+
+    seq = make_sequence("hidden", seed=seed, length=40)
+    tracker = Tracker(mask_to_contour(seq.masks[0], 128))
+    ious = []
+    for frame, mask in zip(seq.frames, seq.masks, strict=True):
+        result = tracker.step(frame)
+        ious.append(mask_iou(contour_to_mask(result.nodes, mask.shape), mask))
+    back = max(i for i, seen in enumerate(seq.visible) if not seen) + 1
+    return ious[back + 3 :]
+
+
 def test_the_window_doubles_up_to_its_limit() -> None:
     assert [search_reach(k) for k in (1, 2, 3, 4, 5, 9)] == [1, 2, 4, 8, 8, 8]
     assert search_reach(0) == 1
@@ -127,17 +142,7 @@ def test_an_object_back_from_hiding_is_not_held_to_where_the_contour_drifted(see
     # the cue stage starts afresh (AFRESH_AFTER), so the background the contour drifted
     # into is not remembered as the object's under an occluder.  Without that, these two
     # draws stayed at 0.83-0.90 for a dozen frames after the object came back.
-    from engine.geometry import mask_to_contour
-    from engine.testing.synthetic import make_sequence
-
-    seq = make_sequence("hidden", seed=seed, length=40)
-    tracker = Tracker(mask_to_contour(seq.masks[0], 128))
-    ious = []
-    for frame, mask in zip(seq.frames, seq.masks, strict=True):
-        result = tracker.step(frame)
-        ious.append(mask_iou(contour_to_mask(result.nodes, mask.shape), mask))
-    back = max(i for i, seen in enumerate(seq.visible) if not seen) + 1
-    assert min(ious[back + 3 :]) >= 0.95
+    assert min(ious_after_hiding(seed)) >= 0.95
 
 
 def test_an_object_back_from_hiding_is_found_with_its_remembered_shape() -> None:
@@ -145,17 +150,7 @@ def test_an_object_back_from_hiding_is_found_with_its_remembered_shape() -> None
     # object came back, that loop lay half on it and scored as tracked, so it was kept
     # (J about 0.16 to the end).  Back after an absence, the remembered shape is now
     # searched for as well and the better-scoring of the two wins.
-    from engine.geometry import mask_to_contour
-    from engine.testing.synthetic import make_sequence
-
-    seq = make_sequence("hidden", seed=9, length=40)
-    tracker = Tracker(mask_to_contour(seq.masks[0], 128))
-    ious = []
-    for frame, mask in zip(seq.frames, seq.masks, strict=True):
-        result = tracker.step(frame)
-        ious.append(mask_iou(contour_to_mask(result.nodes, mask.shape), mask))
-    back = max(i for i, seen in enumerate(seq.visible) if not seen) + 1
-    assert min(ious[back + 3 :]) >= 0.95
+    assert min(ious_after_hiding(9)) >= 0.95
 
 
 def test_a_state_written_before_the_return_search_has_not_reacquired() -> None:
