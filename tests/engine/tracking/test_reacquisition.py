@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
+from typing import Any
 
 import cv2
 import numpy as np
@@ -167,3 +168,22 @@ def test_a_state_written_before_the_return_search_has_not_reacquired() -> None:
     assert restored.to_state()["search"]["reacquired"] is False  # back to tracking
     del state["search"]["reacquired"]
     assert Tracker.from_state(state).to_state()["search"]["reacquired"] is False
+
+
+def test_a_reacquired_absence_is_not_searched_again_on_the_way_back(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # re-acquired at frame 6, on probation at 7 and 8, tracking again from 9: the frame
+    # back (misses still 3) must not search once more, which chained jumps on video
+    searched: list[int] = []
+    search = Tracker._search
+
+    def spy(self: Tracker, *args: Any) -> Any:
+        searched.append(self.frame_index)
+        return search(self, *args)
+
+    monkeypatch.setattr(Tracker, "_search", spy)
+    tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
+    statuses = [tracker.step(frame).status for frame, _ in jumping()]
+    assert statuses[9] == "tracking"
+    assert searched == [4, 5, 6]  # lost at 4 and 5, found at 6; nothing after
