@@ -48,6 +48,10 @@ class Memory:
     reacquired : bool
         Whether the current run of misses already ended in a re-acquisition (the
         remembered shape was put back once; it is not searched for again on the way back).
+    jumped : bool
+        Whether the last re-acquisition moved the contour away from the local one
+        (:func:`~engine.tracking.reacquisition.jumped`): only then are the frames of its
+        probation reported ``uncertain``.
     """
 
     misses: int
@@ -58,6 +62,7 @@ class Memory:
     usual: NDArray[np.float64] = field(default_factory=lambda: np.zeros(2))
     usual_count: int = 0
     reacquired: bool = False
+    jumped: bool = True
 
     @classmethod
     def fresh(cls, nodes: NDArray[np.float64]) -> Memory:
@@ -80,8 +85,8 @@ class Memory:
             self.usual_count += 1
 
     def to_state(self) -> dict[str, Any]:
-        """``{"misses", "probation", "shape", "hold", "outline", "usual", "reacquired"}``,
-        JSON-able (``"usual"``: ``[inside, outside, frames counted]``)."""
+        """``{"misses", "probation", "shape", "hold", "outline", "usual", "reacquired",
+        "jumped"}``, JSON-able (``"usual"``: ``[inside, outside, frames counted]``)."""
         return {
             "misses": self.misses,
             "probation": self.probation,
@@ -90,6 +95,7 @@ class Memory:
             "outline": None if self.outline is None else self.outline.tolist(),
             "usual": [float(self.usual[0]), float(self.usual[1]), self.usual_count],
             "reacquired": self.reacquired,
+            "jumped": self.jumped,
         }
 
     @classmethod
@@ -98,7 +104,9 @@ class Memory:
 
         A state without ``"outline"`` (written before the shape memory) has none; one
         without ``"usual"`` (written before it) counts the usual look from its next frames;
-        one without ``"reacquired"`` (written before it) has not re-acquired.
+        one without ``"reacquired"`` (written before it) has not re-acquired; one without
+        ``"jumped"`` (written when every re-acquisition was on probation) reports its
+        probation's frames ``uncertain``.
         """
         outline = state.get("outline")
         usual = state.get("usual", [0.0, 0.0, 0])
@@ -111,6 +119,9 @@ class Memory:
         reacquired = state.get("reacquired", False)
         if not isinstance(reacquired, bool):
             raise ValueError(f"reacquired must be true or false; got {reacquired!r}")
+        jumped = state.get("jumped", True)
+        if not isinstance(jumped, bool):
+            raise ValueError(f"jumped must be true or false; got {jumped!r}")
         return cls(
             count(state["misses"]),
             count(state["probation"]),
@@ -120,4 +131,5 @@ class Memory:
             means,
             frames,
             reacquired,
+            jumped,
         )

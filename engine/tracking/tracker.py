@@ -59,7 +59,7 @@ from engine.tracking.memory import Memory
 from engine.tracking.motion_contrast import motion_ratio, with_motion
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
-from engine.tracking.reacquisition import search_reach, search_shape
+from engine.tracking.reacquisition import jumped, search_reach, search_shape
 from engine.tracking.refinement import Refinement, refine
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
@@ -89,8 +89,10 @@ REACQUIRE_MARGIN = 0.05
 """A re-acquired contour must beat the local track's search score by this much:
 of two near-equal readings, the one that did not jump wins."""
 PROBATION = 2
-"""A re-acquired contour is reported ``uncertain`` for its first 2 frames: a
-jump is right only if the object is then followed from there."""
+"""A re-acquired contour that jumped (:func:`engine.tracking.reacquisition.jumped`) is
+reported ``uncertain`` for its first 2 frames: a jump is right only if the object is then
+followed from there.  One that corrects the local contour in place is reported as its
+confidence says; either way these frames do not become the remembered shape."""
 SEARCH_UNLESS_COVERED = 0.2
 """An object at least this much hidden by other tracked objects in front is not searched
 for elsewhere: its low score is theirs, and it is known to be behind them."""
@@ -248,8 +250,8 @@ class Tracker:
         The last result's confidence is
         :func:`engine.tracking.confidence.calibrated` of it, except when the contour lies
         wholly outside the frame (0) and in the frames of probation after a re-acquisition
-        (at most just below :data:`engine.tracking.confidence.TRACKING_FROM`).  For analysis: the
-        benchmark cross-validates the confidence model on it
+        that jumped (at most just below :data:`engine.tracking.confidence.TRACKING_FROM`).
+        For analysis: the benchmark cross-validates the confidence model on it
         (``python -m bench.tracking.confidence``).  Not part of :meth:`to_state`.
         """
         return self._evidence
@@ -385,6 +387,7 @@ class Tracker:
                     if memory.outline is not None:  # the remembered outline goes along
                         shift = retry.nodes.mean(axis=0) - prediction.nodes.mean(axis=0)
                         memory.outline = memory.outline + shift
+                    memory.jumped = jumped(attempt.nodes, other.nodes)
                     prediction, attempt, self.cues, hold = retry, other, cues, moved
                     self.motion.reset()
                     memory.probation = PROBATION + 1
@@ -394,7 +397,8 @@ class Tracker:
         memory.hold = carry(hold, refinement.nodes, nodes)
         if memory.probation > 0:
             memory.probation -= 1
-            confidence = min(confidence, UNCONFIRMED)  # on probation: just below tracking
+            if memory.jumped:  # on probation: just below tracking
+                confidence = min(confidence, UNCONFIRMED)
         elif attempt.score >= SEARCH_BELOW:
             if memory.misses >= AFRESH_AFTER:  # back after an absence: occluders forgotten
                 self.cues.start(image, nodes, self.appearance)

@@ -13,7 +13,13 @@ from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking import ColourHistogram, Tracker
-from engine.tracking.reacquisition import MAX_REACH, search_reach, search_shape
+from engine.tracking.reacquisition import (
+    JUMP_BELOW,
+    MAX_REACH,
+    jumped,
+    search_reach,
+    search_shape,
+)
 
 U8 = NDArray[np.uint8]
 H, W, R = 240, 400, 22.0
@@ -124,6 +130,8 @@ def test_a_state_taken_mid_search_resumes_exactly() -> None:
         ("usual", "typical"),
         ("reacquired", 1),
         ("reacquired", "yes"),
+        ("jumped", 0),
+        ("jumped", None),
     ],
 )
 def test_a_malformed_search_state_is_refused(key: str, value: object) -> None:
@@ -187,3 +195,43 @@ def test_a_reacquired_absence_is_not_searched_again_on_the_way_back(
     statuses = [tracker.step(frame).status for frame, _ in jumping()]
     assert statuses[9] == "tracking"
     assert searched == [4, 5, 6]  # lost at 4 and 5, found at 6; nothing after
+
+
+def test_a_jump_is_a_move_off_the_local_contour() -> None:
+    here = circle_nodes((90.0, 120.0), R, 128)
+    assert not jumped(here, here)
+    assert not jumped(here, here + np.array([4.0, 0.0]))  # IoU 0.80: corrected in place
+    assert jumped(here, here + np.array([2 * R, 0.0]))  # beside it
+    assert jumped(here, circle_nodes((90.0, 120.0), R / 2, 128))  # a quarter of it: IoU 0.27
+    assert not jumped(here, circle_nodes((90.0, 120.0), R * math.sqrt(0.8), 128))  # 0.81
+    assert jumped(np.zeros((4, 2)), np.full((4, 2), 9.0))  # degenerate, elsewhere
+    assert 0.5 < JUMP_BELOW < 0.9
+
+
+def test_only_a_reacquisition_that_jumped_is_on_probation(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # the disc jumped 150 px: re-acquired at frame 6, on probation for it and the next two
+    frames = jumping()
+    tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
+    statuses = [tracker.step(frame).status for frame, _ in frames]
+    assert statuses[6:9] == ["uncertain"] * 3
+    assert statuses[9] == "tracking"
+    # the same re-acquisitions taken as corrections in place: reported as they score
+    monkeypatch.setattr("engine.tracking.tracker.jumped", lambda local, found: False)
+    tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
+    results = []
+    for i, (frame, _) in enumerate(frames):
+        results.append(tracker.step(frame))
+        if i == 6:  # mid-probation: the state carries the jump's verdict
+            state = copy.deepcopy(tracker.to_state())
+    assert [r.status for r in results[6:]] == ["tracking"] * (len(frames) - 6)
+    assert state["search"]["jumped"] is False
+    restored = Tracker.from_state(state)
+    for (frame, _), kept in zip(frames[7:], results[7:], strict=True):
+        r = restored.step(frame)
+        np.testing.assert_array_equal(r.nodes, kept.nodes)
+        assert (r.confidence, r.status) == (kept.confidence, kept.status)
+    # a state written before the verdict was kept: every re-acquisition jumped
+    del state["search"]["jumped"]
+    assert Tracker.from_state(state).step(frames[7][0]).status == "uncertain"
