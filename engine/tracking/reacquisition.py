@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
+from engine.geometry import contour_to_mask, mask_iou
 from engine.tracking.stages import AppearanceModel, Frame
 
 __all__ = ["JUMP_BELOW", "MAX_REACH", "jumped", "search_reach", "search_shape"]
@@ -38,16 +38,17 @@ MIN_REACH = 16.0
 SMALL = 40.0
 """Objects under 40 pixels across are searched at full resolution, larger ones at half."""
 JUMP_BELOW = 0.7
-"""A re-acquired contour whose IoU with the local one it replaces is below 0.7 jumped: it
-is on probation (reported ``uncertain``) until the object is followed from there.  One at
-0.7 or more is the local contour corrected in place, and reported as its confidence says.
-Of the thirty training sequences' frames on probation (five node counts), the 81 after a
-re-acquisition at 0.7 or more held 71 with IoU >= 0.6 to the mask and none below 0.2; the
-139 after one below 0.7 held 57 and 8.  The rule held out on folds of the thirty
-(``python -m bench.tracking.confidence``) at 0.5 / 0.7 / 0.9: 96.1 / 96.0 / 95.8 % of the
-good frames ``tracking`` and 87.1 / 87.1 / 86.8 % of the bad ones not, against 95.2 and
-86.8 % with every re-acquisition on probation; 0.3 flags fewer bad frames (85.2 %): half
-the object is not the same place.  0.7 is inside the plateau, away from that edge."""
+"""A re-acquired contour whose IoU with the local one it replaces is below 0.7 jumped: it is
+on probation (reported ``uncertain`` for it and the next two frames, as a jump is right
+only if the object is then followed from there). One at 0.7 or more is the local contour
+corrected in place, and reported as its confidence says. Of the thirty training sequences'
+frames on probation (five node counts), the 81 after a re-acquisition at 0.7 or more held
+71 with IoU >= 0.6 to the mask and none below 0.2; the 139 after one below 0.7 held 57 and
+8. The rule held out on folds of the thirty (``python -m bench.tracking.confidence``) at
+0.5 / 0.7 / 0.9: 96.1 / 96.0 / 95.8 % of the good frames ``tracking`` and 87.1 / 87.1 /
+86.8 % of the bad ones not, against 95.2 and 86.8 % with every re-acquisition on probation;
+0.3 flags fewer bad frames (85.2 %): half the object is not the same place. 0.7 is inside
+the plateau, away from that edge."""
 
 
 def jumped(local: NDArray[np.float64], found: NDArray[np.float64]) -> bool:
@@ -62,15 +63,15 @@ def jumped(local: NDArray[np.float64], found: NDArray[np.float64]) -> bool:
     -------
     bool
         True when the IoU of the areas they enclose (filled on a common grid of whole
-        pixels) is below :data:`JUMP_BELOW`, or when either encloses no pixel.
+        pixels, as :func:`engine.geometry.contour_to_mask` fills them) is below
+        :data:`JUMP_BELOW`.
     """
     corner = np.floor(np.minimum(local.min(axis=0), found.min(axis=0))) - 1.0
     far = np.ceil(np.maximum(local.max(axis=0), found.max(axis=0))) + 1.0
     width, height = (int(v) + 1 for v in far - corner)
-    a = contour_to_mask(local - corner, (height, width)) > 0
-    b = contour_to_mask(found - corner, (height, width)) > 0
-    union = np.count_nonzero(a | b)
-    return bool(union == 0 or np.count_nonzero(a & b) < JUMP_BELOW * union)
+    a = contour_to_mask(local - corner, (height, width))
+    b = contour_to_mask(found - corner, (height, width))
+    return bool(mask_iou(a, b) < JUMP_BELOW)
 
 
 def search_reach(misses: int) -> float:
