@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask, mask_iou
+from engine.geometry import as_nodes, contour_to_mask, mask_iou
 from engine.tracking.stages import AppearanceModel, Frame
 
 __all__ = ["JUMP_BELOW", "MAX_REACH", "jumped", "search_reach", "search_shape"]
@@ -65,7 +65,13 @@ def jumped(local: NDArray[np.float64], found: NDArray[np.float64]) -> bool:
         True when the IoU of the areas they enclose (filled on a common grid of whole
         pixels, as :func:`engine.geometry.contour_to_mask` fills them) is below
         :data:`JUMP_BELOW`.
+
+    Raises
+    ------
+    ValueError
+        If either is not an (N, 2) array of at least 3 finite points.
     """
+    local, found = as_nodes(local), as_nodes(found)
     corner = np.floor(np.minimum(local.min(axis=0), found.min(axis=0))) - 1.0
     far = np.ceil(np.maximum(local.max(axis=0), found.max(axis=0))) + 1.0
     width, height = (int(v) + 1 for v in far - corner)

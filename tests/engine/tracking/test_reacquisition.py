@@ -208,6 +208,17 @@ def test_a_jump_is_a_move_off_the_local_contour() -> None:
     assert 0.5 < JUMP_BELOW < 0.9
 
 
+@pytest.mark.parametrize(
+    "bad", [np.zeros((2, 2)), np.full((4, 2), np.nan), np.zeros((4, 3)), "contour"]
+)
+def test_a_jump_between_malformed_contours_is_refused(bad: Any) -> None:
+    here = circle_nodes((90.0, 120.0), R, 128)
+    with pytest.raises(ValueError, match="nodes must"):
+        jumped(here, bad)
+    with pytest.raises(ValueError, match="nodes must"):
+        jumped(bad, here)
+
+
 def test_only_a_reacquisition_that_jumped_is_on_probation(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
