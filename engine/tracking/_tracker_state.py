@@ -114,6 +114,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("bridge_strips", False)  # and before the strips bridged
         options.setdefault("carve_gaps", False)  # and before the gaps carved
         options.setdefault("full_resolution_edges", False)  # and before the second cut
+        options.setdefault("align_prediction", False)  # and before the alignment
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])

@@ -197,6 +197,15 @@ class TrackerOptions:
         True: without it a large object's boundary is placed to 2 px.  Cross-validated
         on the thirty training sequences over five node counts: chosen in all five folds
         (``docs/tracking-log.md``).
+    align_prediction : bool
+        Before the refinement and the cut, the prediction is shifted (by up to 8 px
+        each way) to where the frame's p(object) fits its silhouette best, when that
+        is clearly better than where the motion put it
+        (:func:`engine.tracking.alignment.align_to_appearance`).  Default True:
+        without it a prediction the motion got wrong by more than the cut's band
+        stayed off the object (a dog over a hurdle, a rider in motion blur).
+        Cross-validated on the thirty training sequences over five node counts
+        (``docs/tracking-log.md``).
 
     Raises
     ------
@@ -229,6 +238,7 @@ class TrackerOptions:
     bridge_strips: bool = True
     carve_gaps: bool = True
     full_resolution_edges: bool = True
+    align_prediction: bool = True
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -274,6 +284,7 @@ class TrackerOptions:
             "bridge_strips",
             "carve_gaps",
             "full_resolution_edges",
+            "align_prediction",
         ):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false; got {getattr(self, name)!r}")

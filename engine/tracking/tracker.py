@@ -40,6 +40,7 @@ from engine.geometry import as_nodes, resample
 from engine.tracking._frames import as_frame as _as_frame
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._tracker_state import restore, snapshot
+from engine.tracking.alignment import aligned
 from engine.tracking.appearance import ColourHistogram
 from engine.tracking.background import MEASURE, Background
 from engine.tracking.confidence import (
@@ -453,6 +454,8 @@ class Tracker:
                 guide = dataclasses.replace(maps, probability=probability, observed=maps.seen)
                 maps = dataclasses.replace(maps, motion=ratio)
         guide, maps = cover_maps(guide, crowd.covered), cover_maps(maps, crowd.covered)
+        if self.options.align_prediction:
+            prediction = aligned(prediction, guide)
         if outline is not None:
             contrast = side_contrast(maps.probability, maps.origin, prediction.nodes)
             still = hold * hold_factors(contrast, self.options.hold_below)

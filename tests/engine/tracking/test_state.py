@@ -109,7 +109,14 @@ def test_far_background_is_kept_through_a_state_and_read_as_off_when_missing(
 
 @pytest.mark.parametrize(
     "option",
-    ["rigid_behind", "revealed_background", "bridge_strips", "carve_gaps", "full_resolution_edges"],
+    [
+        "rigid_behind",
+        "revealed_background",
+        "bridge_strips",
+        "carve_gaps",
+        "full_resolution_edges",
+        "align_prediction",
+    ],
 )
 def test_an_option_added_later_is_kept_through_a_state_and_read_as_off_when_missing(
     option: str, frames: list[U8]
@@ -290,6 +297,7 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
         bridge_strips=False,
         carve_gaps=False,
         full_resolution_edges=False,
+        align_prediction=False,
     )
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])

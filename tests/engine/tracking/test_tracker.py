@@ -401,6 +401,8 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("carve_gaps", "yes"),
     ("full_resolution_edges", 0),
     ("full_resolution_edges", "true"),
+    ("align_prediction", 1),
+    ("align_prediction", None),
 ]
 
 
