@@ -44,12 +44,15 @@ __all__ = ["GAIN", "MIN_AREA", "REACH", "SIDE", "align_to_appearance", "aligned"
 REACH: Final = 8
 """Largest shift (frame pixels, each way in x and y) the search tries: a cut's band
 (``cut_band`` 8) beyond what the motion model predicted.  On the thirty training
-sequences over five node counts J 0.7475 with 8, 0.7471 with 16 and 0.7451 with 24
-(``docs/tracking-log.md``): a farther reach also finds other object-coloured things."""
+sequences over five node counts, searched at full resolution, J 0.7475 with 8, 0.7471
+with 16 and 0.7451 with 24 (0.7420 without the alignment; ``docs/tracking-log.md``): a
+farther reach also finds other object-coloured things.  In blocks, as here: 0.7457."""
 GAIN: Final = 0.05
 """Least gain of ``S`` per silhouette pixel (``2 p - 1`` is in [-1, 1]) for a shift to
-be taken: a twentieth of the silhouette turned from background to object.  The
-thirty: 0.7458 / 0.7471 / 0.7405 with 0.02 / 0.05 / 0.15 (at a reach of 16)."""
+be taken: about 3 % of its pixels turned from clearly background (p 0.1) to clearly
+object (p 0.9), each gaining 1.6.  The
+thirty: 0.7458 / 0.7471 / 0.7405 with 0.02 / 0.05 / 0.15 (at full resolution, a reach of
+16); any gain at all, in blocks: 0.7441."""
 SIDE: Final = 48
 """The silhouette's larger side (pixels) at the resolution the search runs at: a
 large object is searched on p(object) averaged over blocks of ``round(size / 48)``
