@@ -96,13 +96,18 @@ def align_to_appearance(
     ------
     ValueError
         If ``probability`` is not a 2-D array, ``nodes`` are not at least 3
-        finite ``[x, y]`` points, or ``reach`` is not a positive integer.
+        finite ``[x, y]`` points, ``reach`` is not a positive integer, or ``gain``
+        is not a finite number at least 0.
     """
     p = np.asarray(probability, np.float32)
     if p.ndim != 2:
         raise ValueError(f"probability must be an H x W map; got shape {p.shape}")
     if isinstance(reach, bool) or not isinstance(reach, int) or reach < 1:
         raise ValueError(f"reach must be a positive integer; got {reach!r}")
+    if isinstance(gain, bool) or not isinstance(gain, int | float) or not gain >= 0:
+        raise ValueError(f"gain must be a number at least 0; got {gain!r}")
+    if not math.isfinite(gain):
+        raise ValueError(f"gain must be finite; got {gain!r}")
     local = as_nodes(nodes) - np.asarray(origin, np.float64)
     span = float((local.max(axis=0) - local.min(axis=0)).max())
     block = max(1, round(span / SIDE))

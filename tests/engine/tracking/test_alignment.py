@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any, Self
 
@@ -103,6 +104,13 @@ def test_bad_input_is_refused(
 ) -> None:
     with pytest.raises(ValueError, match=message):
         align_to_appearance(probability, (0, 0), nodes, reach=reach)
+
+
+@pytest.mark.parametrize("gain", [-0.1, math.nan, math.inf, "0.05", None, True])
+def test_a_bad_gain_is_refused(gain: Any) -> None:
+    p = disc_map((120, 160), (86.0, 56.0), 18.0)
+    with pytest.raises(ValueError, match="gain"):
+        align_to_appearance(p, (0, 0), circle_nodes((80.0, 60.0), 18.0, 64), gain=gain)
 
 
 def test_aligned_moves_the_whole_prediction_or_returns_it() -> None:
