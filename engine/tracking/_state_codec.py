@@ -12,12 +12,17 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-HISTOGRAM_SIZES = (32, 4096)  # grey and BGR bins, see engine.tracking.appearance
+HISTOGRAM_SIZES = (32, 4096, 32768)  # grey, BGR at 16 (old states) and 32 levels: see appearance
 
 
-def pack_histogram(values: NDArray[np.float64]) -> str:
-    """Base64 of zlib-compressed little-endian float64: exact and small."""
-    return base64.b64encode(zlib.compress(values.astype("<f8").tobytes())).decode("ascii")
+HISTOGRAM_DTYPES = ("float64", "float16")
+"""How a state's histograms are stored: exactly, or (compact states) to three digits."""
+
+
+def pack_histogram(values: NDArray[np.float64], dtype: str = "float64") -> str:
+    """Base64 of zlib-compressed little-endian ``dtype`` values (float64: exact)."""
+    stored = values.astype(np.dtype(dtype).newbyteorder("<"))
+    return base64.b64encode(zlib.compress(stored.tobytes())).decode("ascii")
 
 
 def _inflate(text: str, limit: int) -> bytes:
@@ -25,13 +30,16 @@ def _inflate(text: str, limit: int) -> bytes:
     return zlib.decompressobj().decompress(base64.b64decode(text, validate=True), limit + 1)
 
 
-def unpack_histogram(text: str) -> NDArray[np.float64]:
+def unpack_histogram(text: str, dtype: str = "float64") -> NDArray[np.float64]:
     """Inverse of :func:`pack_histogram`; rejects anything that is not a histogram."""
-    limit = max(HISTOGRAM_SIZES) * 8
+    if dtype not in HISTOGRAM_DTYPES:
+        raise ValueError(f"histograms are stored as {' or '.join(HISTOGRAM_DTYPES)}, not {dtype!r}")
+    stored = np.dtype(dtype).newbyteorder("<")
+    limit = max(HISTOGRAM_SIZES) * stored.itemsize
     raw = _inflate(text, limit)
-    if len(raw) > limit or raw == b"" or len(raw) % 8:
+    if len(raw) > limit or raw == b"" or len(raw) % stored.itemsize:
         raise ValueError("histogram has the wrong size")
-    values = np.frombuffer(raw, dtype="<f8").astype(np.float64)
+    values = np.frombuffer(raw, dtype=stored).astype(np.float64)
     if len(values) not in HISTOGRAM_SIZES:
         raise ValueError(f"histogram must have {' or '.join(map(str, HISTOGRAM_SIZES))} bins")
     if not np.isfinite(values).all() or (values < 0).any():

@@ -26,6 +26,7 @@ from engine.tracking._state_codec import (
     unpack_compact_frame,
     unpack_image,
 )
+from engine.tracking.appearance import LEGACY_COLOUR_BITS
 from engine.tracking.lighting import Lighting
 from engine.tracking.memory import Memory
 
@@ -115,6 +116,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("carve_gaps", False)  # and before the gaps carved
         options.setdefault("full_resolution_edges", False)  # and before the second cut
         options.setdefault("align_prediction", False)  # and before the alignment
+        options.setdefault("colour_bits", LEGACY_COLOUR_BITS)  # and before 32 colour levels
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])

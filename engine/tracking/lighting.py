@@ -46,9 +46,11 @@ from engine.tracking._state_codec import pack_raw, unpack_raw
 __all__ = ["ABSORBED", "Lighting"]
 
 ABSORBED = 0.05
-"""Log gain (about 5 %) the colour models absorb without help: a third of a bin
-of the global model's 16 levels at mid-grey, and 5 % learning per confident frame
-follows such a drift.  Only the change of light beyond it is undone."""
+"""Log gain (about 5 %) the colour models absorb without help: 6 grey levels at mid-grey,
+a third of a bin of the global model's 16 levels when it was chosen (four fifths of one
+of its 32 levels since), and 5 % learning per confident frame follows such a drift.  Only
+the change of light beyond it is undone (``lighting_change`` still passes on every seed of
+24 at 32 levels)."""
 GRID = 8
 """Pixels between the whole frame's sample points: 6,400 points at 854 x 480, a tenth of
 a millisecond (a 4-pixel grid, four times the points and the time, tracked the thirty

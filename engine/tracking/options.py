@@ -13,11 +13,18 @@ from dataclasses import dataclass
 from typing import Any
 
 from engine.physics._validation import as_stiffness
+from engine.tracking.appearance import COLOUR_BITS, MAX_COLOUR_BITS
 from engine.tracking.motion import MAX_FEATURES
 
 __all__ = ["TrackerOptions"]
 
-_INTEGER_BOUNDS = {"search_radius": 256, "iterations": 100, "band": 256, "max_features": 1000}
+_INTEGER_BOUNDS = {
+    "search_radius": 256,
+    "iterations": 100,
+    "band": 256,
+    "max_features": 1000,
+    "colour_bits": MAX_COLOUR_BITS,
+}
 MAX_CUT_BAND = 64
 """Widest band of the joint segmentation: beyond this the cut is a whole-region
 segmentation, slower and no longer anchored to the tracked shape."""
@@ -206,6 +213,13 @@ class TrackerOptions:
         stayed off the object (a dog over a hurdle, a rider in motion blur).
         Cross-validated on the thirty training sequences over five node counts:
         chosen in all five folds, J 0.746 against 0.742 (``docs/tracking-log.md``).
+    colour_bits : int
+        Levels per BGR channel of the object and background colour histograms, as a
+        power of two (1-5; :class:`engine.tracking.appearance.ColourHistogram`).
+        Default 5, 32 levels: at 16 a colour 8 levels off the object's shared its
+        bins half the time, so a background of nearly the object's colour read as
+        object (:data:`engine.tracking.appearance.COLOUR_BITS`).  States written
+        before it resume at 4.
 
     Raises
     ------
@@ -239,6 +253,7 @@ class TrackerOptions:
     carve_gaps: bool = True
     full_resolution_edges: bool = True
     align_prediction: bool = True
+    colour_bits: int = COLOUR_BITS
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:

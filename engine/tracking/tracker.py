@@ -199,7 +199,7 @@ class Tracker:
             opts.max_features, opts.flow_stiffness, opts.figure_ground
         )
         self.appearance: AppearanceModel = appearance or ColourHistogram(
-            opts.band, opts.learning_rate, opts.far_background
+            opts.band, opts.learning_rate, opts.far_background, opts.colour_bits
         )
         self.cues: BoundaryCues = cues or RegionEdgeCues(
             opts.search_radius, opts.occlusion, opts.rigid_behind, opts.revealed_background

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking import Tracker
+from engine.tracking.appearance import ColourHistogram
 from tests.engine.scenes import DiscScene
 
 U8 = NDArray[np.uint8]
@@ -63,10 +64,24 @@ def test_a_compact_state_keeps_the_contour_options_and_models(
     assert (found["misses"], found["probation"]) == (kept["misses"], kept["probation"])
     np.testing.assert_allclose(found["shape"], kept["shape"], atol=0.005)
     np.testing.assert_allclose(found["hold"], kept["hold"], atol=0.0005)
-    for stage in ("motion", "appearance", "segmentation"):
+    for stage in ("motion", "segmentation"):
         assert compact["stages"][stage] == exact["stages"][stage]
     restored = Tracker.from_state(compact)
     np.testing.assert_array_equal(restored.nodes, tracker.nodes)
+    # the colour histograms to three digits: p(object) reads the same to a thousandth
+    model, kept = restored.appearance, tracker.appearance
+    assert isinstance(model, ColourHistogram)
+    assert isinstance(kept, ColourHistogram)
+    assert model.histograms is not None
+    assert kept.histograms is not None
+    assert model.colour_bits == kept.colour_bits
+    for got, want in (
+        (model.histograms.object_hist, kept.histograms.object_hist),
+        (model.histograms.background_hist, kept.histograms.background_hist),
+    ):
+        np.testing.assert_allclose(got, want, rtol=1e-3, atol=1e-7)
+    frame = tracked[1][6]
+    np.testing.assert_allclose(model.probability(frame), kept.probability(frame), atol=2e-3)
 
 
 def test_a_tracker_resumed_from_a_compact_state_follows_closely(

@@ -20,6 +20,7 @@ from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking._state_codec import pack_counts as _pack_counts
 from engine.tracking._state_codec import pack_histogram as _pack
 from engine.tracking._tracker_state import STATE_VERSION
+from engine.tracking.appearance import LEGACY_COLOUR_BITS, ColourHistogram
 from engine.tracking.tracker import Tracker
 from tests.engine.tracking.moving_disc import (
     H,
@@ -128,6 +129,29 @@ def test_an_option_added_later_is_kept_through_a_state_and_read_as_off_when_miss
     assert getattr(Tracker.from_state(state).options, option) is True
     del state["options"][option]  # written before the option
     assert getattr(Tracker.from_state(state).options, option) is False
+
+
+def test_colour_levels_are_kept_through_a_state_and_read_as_16_when_missing(
+    frames: list[U8],
+) -> None:
+    tracker = Tracker(initial())
+    run(tracker, frames[:3])
+    state = through_json(tracker.to_state())
+    restored = Tracker.from_state(state)
+    assert restored.options.colour_bits == 5
+    for frame in frames[3:6]:
+        assert_same(restored.step(frame), tracker.step(frame))
+    state["options"]["colour_bits"] = LEGACY_COLOUR_BITS  # histograms of another size
+    with pytest.raises(ValueError, match="colour_bits=4"):
+        Tracker.from_state(state)
+    old = Tracker(initial(), colour_bits=LEGACY_COLOUR_BITS)
+    run(old, frames[:3])
+    state = through_json(old.to_state())
+    del state["options"]["colour_bits"]  # written before the option: 16 levels
+    restored = Tracker.from_state(state)
+    assert restored.options.colour_bits == LEGACY_COLOUR_BITS
+    for frame in frames[3:6]:
+        assert_same(restored.step(frame), old.step(frame))
 
 
 def test_state_without_frame_reinitialises_on_the_next_frame(frames: list[U8]) -> None:
@@ -299,9 +323,13 @@ def test_a_version_1_state_resumes_exactly(frames: list[U8]) -> None:
         full_resolution_edges=False,
         align_prediction=False,
     )
+    # and its colour histograms had 16 levels a channel: the state resumes at them
+    opts = tracker.options
+    tracker.appearance = ColourHistogram(opts.band, opts.learning_rate, 0.0, LEGACY_COLOUR_BITS)
     run(tracker, frames[:5])
     expected = run(tracker, frames[5:10])
     restored = Tracker.from_state(old)
+    assert getattr(restored.appearance, "colour_bits", None) == LEGACY_COLOUR_BITS
     assert restored.options.cut_band == 0
     assert restored.options.motion_contrast is False
     assert restored.frame_index == 4

@@ -403,6 +403,11 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("full_resolution_edges", "true"),
     ("align_prediction", 1),
     ("align_prediction", None),
+    ("colour_bits", 0),
+    ("colour_bits", 6),
+    ("colour_bits", 5.0),
+    ("colour_bits", True),
+    ("colour_bits", "5"),
 ]
 
 
