@@ -549,12 +549,12 @@ class Tracker:
             and stages that offer a ``to_compact_state`` method (the default
             cues: p(object) as three levels) use it.  Lossy: the next frame
             is tracked slightly differently from an uninterrupted run (the
-            frames after it from that frame's exact result); the contour, the
-            options and the colour models stay exact, the shape the search
-            remembers and the shape memory's outline are kept to a hundredth
-            of a pixel, and the lighting keeps its gains but not the colours
-            it compares the next frame with (that frame measures no change of
-            light).
+            frames after it from that frame's exact result); the contour and the
+            options stay exact, the colour histograms are kept to three digits
+            (float16), the shape the search remembers and the shape memory's
+            outline to a hundredth of a pixel, and the lighting keeps its gains
+            but not the colours it compares the next frame with (that frame
+            measures no change of light).
         """
         return snapshot(self, include_frame=include_frame, compact=compact)
 
