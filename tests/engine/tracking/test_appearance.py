@@ -287,3 +287,21 @@ def test_an_empty_state_keeps_the_models_levels() -> None:
     restored = ColourHistogram(BAND, 0.1, 0.0, LEGACY_COLOUR_BITS).from_state(empty)
     assert restored.colour_bits == LEGACY_COLOUR_BITS
     assert restored.histograms is None
+
+
+def test_a_compact_state_keeps_the_histograms_to_three_digits() -> None:
+    frame = two_colour_frame(CENTER, RADIUS, SHAPE)
+    model = ColourHistogram(BAND, 0.1)
+    model.fit(frame, NODES)
+    compact = model.to_compact_state()
+    assert compact["dtype"] == "float16"
+    assert len(str(compact["background"])) < len(str(model.to_state()["background"]))
+    restored = ColourHistogram(BAND, 0.1).from_state(compact)
+    assert restored.histograms is not None
+    assert model.histograms is not None
+    np.testing.assert_allclose(
+        restored.histograms.object_hist, model.histograms.object_hist, rtol=1e-3, atol=1e-7
+    )
+    np.testing.assert_allclose(restored.probability(frame), model.probability(frame), atol=2e-3)
+    empty = ColourHistogram(BAND, 0.1).to_compact_state()
+    assert ColourHistogram(BAND, 0.1).from_state(empty).histograms is None

@@ -240,6 +240,11 @@ MALFORMED: dict[str, Callable[[State], None]] = {
         value={"kind": "colour-histogram", "background": pack(np.ones(4096) / 4096)},
     ),
     "appearance: a list": setter("stages", "appearance", value=[1, 2]),
+    "appearance: unknown dtype": setter("stages", "appearance", "dtype", value="float32"),
+    "appearance: dtype a number": setter("stages", "appearance", "dtype", value=16),
+    "histogram: float16 read as float64": setter(
+        "stages", "appearance", "object", value=_pack(np.ones(4096) / 4096, "float16")
+    ),
     "appearance: another kind": setter("stages", "appearance", "kind", value="neural"),
     "stages: a list": setter("stages", value=[1, 2]),
     "stages: no motion": lambda state: state["stages"].pop("motion"),
