@@ -78,6 +78,8 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
         search["hold"] = np.round(tracker._memory.hold, 3).tolist()
         if tracker._memory.outline is not None:
             search["outline"] = np.round(tracker._memory.outline, 2).tolist()
+        if tracker._memory.marks is not None:
+            search["marks"] = np.round(tracker._memory.marks, 3).tolist()
         room = COMPACT_BYTES - len(json.dumps(state))
         state["previous"] = pack_compact_frame(previous, tracker._nodes, room)
     elif previous is not None:
@@ -117,6 +119,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("full_resolution_edges", False)  # and before the second cut
         options.setdefault("align_prediction", False)  # and before the alignment
         options.setdefault("colour_bits", LEGACY_COLOUR_BITS)  # and before 32 colour levels
+        options.setdefault("turn_outline", False)  # and before the outline turned
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])
@@ -133,6 +136,8 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
                 tracker._memory = Memory.from_state(search, len(tracker._nodes))
                 if not tracker.options.shape_memory:
                     tracker._memory.outline = None
+                if not (tracker.options.shape_memory and tracker.options.turn_outline):
+                    tracker._memory.marks = None  # the marks stay on the nodes
             lighting = state.get("lighting")
             if lighting is not None and tracker.options.lighting:
                 tracker._lighting = Lighting.from_state(lighting)

@@ -52,6 +52,11 @@ class Memory:
         Whether the last re-acquisition moved the contour away from the local one
         (:func:`~engine.tracking.reacquisition.jumped`): only then are the frames of its
         probation reported ``uncertain``.
+    marks : numpy.ndarray or None
+        (M,) per point of ``outline``, in [0, 1]: how far the node there was held on
+        the first frame (``hold`` then).  They ride on the outline, which turns with
+        the object (:mod:`~engine.tracking.turn`); None: only ``hold`` is known, and
+        it rides on the contour's nodes.
     """
 
     misses: int
@@ -63,6 +68,7 @@ class Memory:
     usual_count: int = 0
     reacquired: bool = False
     jumped: bool = True
+    marks: NDArray[np.float64] | None = None
 
     @classmethod
     def fresh(cls, nodes: NDArray[np.float64]) -> Memory:
@@ -86,8 +92,9 @@ class Memory:
 
     def to_state(self) -> dict[str, Any]:
         """``{"misses", "probation", "shape", "hold", "outline", "usual", "reacquired",
-        "jumped"}``, JSON-able (``"usual"``: ``[inside, outside, frames counted]``)."""
-        return {
+        "jumped"}`` and ``"marks"`` when known, JSON-able (``"usual"``: ``[inside, outside,
+        frames counted]``)."""
+        state: dict[str, Any] = {
             "misses": self.misses,
             "probation": self.probation,
             "shape": self.shape.tolist(),
@@ -97,6 +104,9 @@ class Memory:
             "reacquired": self.reacquired,
             "jumped": self.jumped,
         }
+        if self.marks is not None:
+            state["marks"] = self.marks.tolist()
+        return state
 
     @classmethod
     def from_state(cls, state: Mapping[str, Any], nodes: int) -> Memory:
@@ -106,9 +116,16 @@ class Memory:
         without ``"usual"`` (written before it) counts the usual look from its next frames;
         one without ``"reacquired"`` (written before it) has not re-acquired; one without
         ``"jumped"`` (written when every re-acquisition was on probation) reports its
-        probation's frames ``uncertain``.
+        probation's frames ``uncertain``; one without ``"marks"`` (written before the
+        outline turned) keeps its marks on the contour's nodes.  Marks need an outline,
+        one per point.
         """
-        outline = state.get("outline")
+        outline = None if state.get("outline") is None else as_nodes(state["outline"])
+        marks = state.get("marks")
+        if marks is not None:
+            if outline is None:
+                raise ValueError("marks need an outline")
+            marks = factors(marks, len(outline))
         usual = state.get("usual", [0.0, 0.0, 0])
         if not isinstance(usual, list | tuple) or len(usual) != 3:
             raise ValueError(f"usual must be [inside, outside, frames]; got {usual!r}")
@@ -127,9 +144,10 @@ class Memory:
             count(state["probation"]),
             as_nodes(state["shape"]),
             factors(state["hold"], nodes),
-            None if outline is None else as_nodes(outline),
+            outline,
             means,
             frames,
             reacquired,
             jumped,
+            marks,
         )

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from engine.geometry import fit_similarity, nearest, outward_normals, resample
 from engine.physics import deform
 
-__all__ = ["DENSITY", "FREE_BELOW", "MIN_FREE", "SPREAD", "follow", "rest_on"]
+__all__ = ["DENSITY", "FREE_BELOW", "MIN_FREE", "SPREAD", "follow", "marks_at", "rest_on"]
 
 FREE_BELOW = 0.5
 """A node held less than this (:func:`engine.tracking.holding.hold_factors`) had a
@@ -87,6 +87,22 @@ def follow(
         return moved
     aligned: NDArray[np.float64] = moved @ fit[:, :2].T + fit[:, 2]
     return aligned
+
+
+def marks_at(
+    nodes: NDArray[np.float64], outline: NDArray[np.float64], marks: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Per node of ``nodes`` (``[x, y]``), the mark of the nearest point of ``outline``.
+
+    ``marks`` (one per point of ``outline``, in [0, 1]) say how far each was held on the
+    first frame; riding on the outline, they turn with the object
+    (:mod:`engine.tracking.turn`), where marks carried from node to node stay where the
+    contour's nodes are.
+    """
+    if len(marks) != len(outline):
+        raise ValueError(f"expected {len(outline)} marks, one per outline point; got {len(marks)}")
+    found: NDArray[np.float64] = np.asarray(marks, np.float64)[nearest(nodes, outline)]
+    return found
 
 
 def rest_on(

@@ -64,7 +64,7 @@ from engine.tracking.reacquisition import jumped, search_reach, search_shape
 from engine.tracking.refinement import Refinement, refine
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
-from engine.tracking.shape_memory import follow, rest_on
+from engine.tracking.shape_memory import follow, marks_at, rest_on
 from engine.tracking.shared import Crowd
 from engine.tracking.stages import (
     AppearanceModel,
@@ -73,6 +73,7 @@ from engine.tracking.stages import (
     Prediction,
     Segmentation,
 )
+from engine.tracking.turn import measure_turn, turned
 from engine.tracking.validity import valid_contour
 
 __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
@@ -369,8 +370,15 @@ class Tracker:
         memory = self._memory
         hold = memory.hold
         if memory.outline is not None:
-            memory.outline = follow(memory.outline, prediction.matrix, prediction.nodes, hold)
-        attempt = self._attempt(image, grey, prediction, self.cues, hold, crowd, memory.outline)
+            motion = prediction.matrix
+            if self.options.turn_outline and self._previous is not None:
+                angle = measure_turn(self._previous, grey, self._nodes, motion)
+                if angle is not None:  # the outline turns as far as the object
+                    motion = turned(motion, self._nodes, angle)
+            memory.outline = follow(memory.outline, motion, prediction.nodes, hold)
+        attempt = self._attempt(
+            image, grey, prediction, self.cues, hold, crowd, memory.outline, memory.marks
+        )
         visible = self._visible(grey)
         share = covered_share(crowd.covered, prediction.nodes)
         lost = attempt.score < SEARCH_BELOW
@@ -431,12 +439,14 @@ class Tracker:
         hold: NDArray[np.float64],
         crowd: Crowd,
         outline: NDArray[np.float64] | None = None,
+        marks: NDArray[np.float64] | None = None,
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result.
 
         Given the remembered ``outline``, the nodes held on the first frame that show no
         colour step now are put back on it where they lie outside it
-        (:mod:`engine.tracking.shape_memory`).
+        (:mod:`engine.tracking.shape_memory`): held as the outline's ``marks`` say where
+        they are given, else as ``hold`` says.
         """
         maps = cues.maps(image, grey, prediction, self.appearance)
         if maps.in_front:
@@ -458,7 +468,8 @@ class Tracker:
             prediction = aligned(prediction, guide)
         if outline is not None:
             contrast = side_contrast(maps.probability, maps.origin, prediction.nodes)
-            still = hold * hold_factors(contrast, self.options.hold_below)
+            held = hold if marks is None else marks_at(prediction.nodes, outline, marks)
+            still = held * hold_factors(contrast, self.options.hold_below)
             prediction = dataclasses.replace(
                 prediction, nodes=rest_on(prediction.nodes, outline, still)
             )
@@ -514,6 +525,8 @@ class Tracker:
         self._memory.hold = hold_factors(contrast, self.options.hold_below)
         if self.options.shape_memory:
             self._memory.outline = self._nodes.copy()
+            if self.options.turn_outline:  # the marks ride on the outline
+                self._memory.marks = self._memory.hold.copy()
         return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
 
     def _forget_search(self) -> None:

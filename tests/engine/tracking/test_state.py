@@ -117,6 +117,7 @@ def test_far_background_is_kept_through_a_state_and_read_as_off_when_missing(
         "carve_gaps",
         "full_resolution_edges",
         "align_prediction",
+        "turn_outline",
     ],
 )
 def test_an_option_added_later_is_kept_through_a_state_and_read_as_off_when_missing(

@@ -403,6 +403,8 @@ BAD_OPTIONS: list[tuple[str, Any]] = [
     ("full_resolution_edges", "true"),
     ("align_prediction", 1),
     ("align_prediction", None),
+    ("turn_outline", 0),
+    ("turn_outline", "on"),
     ("colour_bits", 0),
     ("colour_bits", 6),
     ("colour_bits", 5.0),
