@@ -125,7 +125,9 @@ def test_the_outline_is_part_of_the_state() -> None:
     # a state written before the shape memory continues without it
     old = tracker.to_state()
     del old["options"]["shape_memory"]
+    del old["options"]["turn_outline"]  # and so before the outline turned
     del old["search"]["outline"]
+    del old["search"]["marks"]
     assert not Tracker.from_state(old).options.shape_memory
 
 
