@@ -223,14 +223,22 @@ class Lighting:
         sample = state.get("sample")
         if sample is not None:
             k, c = (int(v) for v in sample["shape"])
-            if c != channels or not 0 < k <= 1 << 20:
+            # the last frame's channels, which a stream switching between grey and colour
+            # frames of one size can make differ from the gains' (``whole`` then measures
+            # no change)
+            if c not in (1, 3) or not 0 < k <= 1 << 20:
                 raise ValueError("lighting: bad sample shape")
             out._sample = unpack_raw(sample["data"], np.uint8, k * c).reshape(k, c)
         points, colours = state.get("points"), state.get("colours")
         if points is not None and colours is not None:
             xy = unpack_raw(points, np.dtype("<i4"), None).reshape(-1, 2).astype(np.int64)
             out._points = xy
-            out._colours = unpack_raw(colours, np.uint8, len(xy) * channels).reshape(-1, channels)
+            # one or three channels, as the frame they were taken from (see the sample)
+            values = unpack_raw(colours, np.uint8, None)
+            depth = len(values) // len(xy) if len(xy) else channels
+            if depth not in (1, 3) or len(values) != len(xy) * depth:
+                raise ValueError("lighting: colours do not match the points")
+            out._colours = values.reshape(-1, depth)
         return out
 
 

@@ -218,6 +218,7 @@ def test_a_tracker_resumes_bit_for_bit_during_a_change_of_light() -> None:
         {"log_gains": [100.0, 0.0, 0.0]},
         {"log_gains": [0.0, 0.0, 0.0], "sample": {"shape": [10, 3], "data": "AAAA"}},
         {"log_gains": [0.0, 0.0, 0.0], "sample": {"shape": [10, 1], "data": ""}},
+        {"log_gains": [0.0, 0.0, 0.0], "sample": {"shape": [10, 2], "data": "AAAA"}},
         {"log_gains": [0.0, 0.0, 0.0], "points": "eJwDAAAAAAE=", "colours": "!"},
         {"gains": [0.0, 0.0, 0.0]},
     ],
@@ -231,6 +232,19 @@ def test_a_malformed_lighting_state_is_refused(lighting: dict[str, object]) -> N
     state["lighting"] = lighting
     with pytest.raises(ValueError, match="malformed tracker state"):
         Tracker.from_state(state)
+
+
+@pytest.mark.parametrize("shapes", [[(20, 20), (20, 20, 3)], [(20, 20, 3), (20, 20), (20, 20)]])
+def test_a_stream_switching_between_grey_and_colour_resumes_from_its_state(
+    shapes: list[tuple[int, ...]],
+) -> None:
+    """The grid sample has the last frame's channels, the gains the first frame's."""
+    tracker = Tracker(circle_nodes((10.0, 10.0), 5.0, 8))
+    for i, shape in enumerate(shapes):
+        tracker.step(np.full(shape, 100 + 10 * i, np.uint8))
+        resumed = Tracker.from_state(json.loads(json.dumps(tracker.to_state())))
+        frame = np.full(shape, 95 + 10 * i, np.uint8)
+        np.testing.assert_array_equal(resumed.step(frame).nodes, tracker.step(frame).nodes)
 
 
 def test_without_the_option_the_state_has_no_lighting_and_older_states_have_it_off() -> None:
