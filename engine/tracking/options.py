@@ -175,7 +175,7 @@ class TrackerOptions:
         :data:`engine.tracking.confidence.TRACKING_FROM`).
     bridge_strips : bool
         The object's part beyond a thin strip that looks like background (a
-        pole or a bar in front of it, up to about 14 px wide) is taken back
+        pole or a bar in front of it, up to 15 px wide) is taken back
         across the strip when its colours are plainly the object's and it lies
         inside the object's remembered outline (the cut's
         :func:`engine.tracking.beyond_band.bridge`; with ``shape_memory``).

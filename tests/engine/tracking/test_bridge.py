@@ -54,6 +54,28 @@ def test_nothing_is_taken_outside_the_remembered_outline() -> None:
     assert np.array_equal(bridge(seg, p, remembered), seg)
 
 
+def test_a_strip_as_wide_as_a_sweeping_bar_is_crossed() -> None:
+    """15 px: the generated ``occluder``'s widest bar (14 px) and its blurred edges."""
+    width = 2 * BRIDGE_GAP - 1
+    assert width >= 15
+    seg, p, remembered = scene(FAR_END - 16 - width, width)
+    grown = bridge(seg, p, remembered)
+    assert grown[40:80, FAR_END - 16 : FAR_END - 2].all()
+    assert grown[40:80, FAR_END - 16 - width : FAR_END - 16].all()
+
+
+def test_the_strip_does_not_count_against_the_share() -> None:
+    """A bar across the whole object: the strip and the part beyond it together are more
+    than the share, the part beyond alone is not."""
+    width = 14
+    strip = FAR_END - 16 - width
+    seg, p, remembered = scene(strip, width)
+    beyond, object_ = 60 * 16, np.count_nonzero(seg)
+    assert beyond < REGROW_CAP * object_ < beyond + 60 * width
+    grown = bridge(seg, p, remembered)
+    assert grown[40:80, strip : FAR_END - 2].all()
+
+
 def test_nothing_is_taken_when_it_would_grow_the_object_too_much() -> None:
     seg, p, remembered = scene(60, 6)  # the far part is twice the cut's object
     assert (FAR_END - 66) > REGROW_CAP * (60 - 10)
@@ -80,7 +102,7 @@ def whole_region_bridge(
     joined = cv2.morphologyEx((seg | pieces).astype(np.uint8), cv2.MORPH_CLOSE, disc) > 0
     around = cv2.dilate(cv2.dilate(pieces.astype(np.uint8), disc), disc) > 0
     grown = pieces | (joined & ~seg & remembered & around)
-    if np.count_nonzero(grown) > REGROW_CAP * np.count_nonzero(seg):
+    if np.count_nonzero(pieces) > REGROW_CAP * np.count_nonzero(seg):
         return seg
     result: NDArray[np.bool_] = seg | grown
     return result
