@@ -74,6 +74,8 @@ similarity takes them are left out: twice the motion model's RANSAC threshold,
 room for the rotation it missed."""
 MIN_INTERIOR: Final = 2
 """Fewest interior points to measure a turn: with fewer, the rim alone cannot."""
+_KEEP_OFF_RIM = np.ones((WINDOW + 2, WINDOW + 2), np.uint8)
+"""The square the contour's inside is eroded by before corners are sought in it."""
 
 
 def measure_turn(
@@ -120,7 +122,8 @@ def measure_turn(
     if min(before.shape) <= WINDOW:
         return None
     half_nodes = frames.to_half(nodes)
-    inner = cv2.erode(contour_to_mask(half_nodes, before.shape), _square(WINDOW + 2))
+    # eroded by a Lucas-Kanade window and a pixel each side: no window reaches the rim
+    inner = cv2.erode(contour_to_mask(half_nodes, before.shape), _KEEP_OFF_RIM)
     if not inner.any():
         return None
     corners = cv2.goodFeaturesToTrack(
@@ -221,7 +224,3 @@ def turned(
     linear = scale * np.array([[c, -s], [s, c]])
     result: NDArray[np.float64] = np.hstack([linear, (moved - linear @ centre)[:, None]])
     return result
-
-
-def _square(side: int) -> NDArray[np.uint8]:
-    return np.ones((side, side), np.uint8)
