@@ -61,10 +61,11 @@ object-like piece beyond a strip (:func:`bridge`): strips up to ``2 * BRIDGE_GAP
 condition's sweeping bars are 8-14 px wide, and the pixels their edges blur are not
 object-like either: at 7 (strips up to 13 px) ``occluder`` seed 13's bar, 14.3 px from the
 object to the part beyond, was never crossed, and the contour shrank with the part below
-it (J 0.479).  Cross-validated on the thirty training
-sequences, 8 is chosen in four folds of five (mean J over five node counts 0.7494 against
-0.7490 at 7); 10 crossed no more of the bars when it was last compared (0.7291 against
-0.7287 at 7, ``docs/tracking-log.md``)."""
+it (J 0.479).  On the thirty training sequences, 8 with only the pieces held to
+:data:`REGROW_CAP` (:func:`bridge`) against 7 with the strip counted too: chosen in four
+folds of five from the two runs, mean J over five node counts 0.7494 against 0.7490
+(0.7499 at 8 with the strip counted).  On 2026-11-27, 10 crossed no more of the static
+bars than 7 (0.7291 against 0.7287, ``docs/tracking-log.md``)."""
 
 
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
