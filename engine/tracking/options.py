@@ -229,7 +229,9 @@ class TrackerOptions:
         turn by a third of its turn, so the marks stayed behind and the contour took
         in the leading end of an object-coloured stretch of background (the
         synthetic ``no_contrast_stretch``: 9 seeds of 24 below 0.95, 5 with it).  The
-        thirty training sequences over five node counts: J 0.7490 either way.  Does
+        thirty training sequences over five node counts: J 0.7490 either way when it
+        came; since strips up to 15 px are bridged, chosen in all five folds (0.749
+        against 0.747, ``python -m bench.tracking --cv "turn_outline=true,false"``).  Does
         nothing without ``shape_memory``.  States written before it resume without.
 
     Raises
