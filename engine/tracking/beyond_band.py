@@ -174,15 +174,14 @@ def bridge(
     near = np.zeros(len(touching), dtype=np.bool_)
     near[labels_[reach & (labels_ > 0)]] = True
     pieces = (near & loose)[labels_]
-    if not pieces.any():
+    # only the pieces count against the share (not the strip): decided before the strip
+    if not pieces.any() or np.count_nonzero(pieces) > REGROW_CAP * np.count_nonzero(seg):
         return seg
     union = (object_ | pieces).astype(np.uint8)
     joined = np.asarray(cv2.morphologyEx(union, cv2.MORPH_CLOSE, _BRIDGE_DISC)) > 0
     around = cv2.dilate(cv2.dilate(pieces.astype(np.uint8), _BRIDGE_DISC), _BRIDGE_DISC)
     inside = remembered[box] & (object_ == 0)
     grown = pieces | (joined & inside & (np.asarray(around) > 0))
-    if np.count_nonzero(pieces) > REGROW_CAP * np.count_nonzero(seg):
-        return seg
     bridged = seg.copy()
     bridged[box] |= grown
     return bridged
