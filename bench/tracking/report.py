@@ -38,7 +38,7 @@ from bench.tracking.tables import (
 )
 from bench.tracking.trackers import SKIMAGE_PARAMS, SKIMAGE_SIGMA
 
-PLAIN = "in-sample: four defaults were chosen on these; --cv gives held-out figures"
+PLAIN = "in-sample: the defaults were chosen on these; --cv gives held-out figures"
 """How the plain run's training figures were obtained: with the defaults, some of
 which were chosen by cross-validation on the training set itself."""
 REFERENCES: dict[str, tuple[float, ...]] = {
