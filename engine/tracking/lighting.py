@@ -7,8 +7,10 @@ online, but only from confident frames and a few per cent at a time: a change of
 a third over a few seconds leaves them behind, the object stops looking like
 itself, and the track is lost.
 
-Per frame and channel, the change of light is measured as the median ratio of
-a pixel's level now to its level in the previous frame, twice:
+Per frame and channel, the change of light is measured as a robust mean ratio of
+a pixel's level now to its level in the previous frame (the mean over the points
+near the median, re-centred on itself: a step below a grey level is still measured
+in full, :func:`engine.tracking._lighting_kernel.ratio_step`), twice:
 
 - over the whole frame, at the same pixels (a 4-pixel grid): many pixels, but a
   camera's pan pairs different points of the scene;
@@ -65,8 +67,9 @@ DARK, BRIGHT = 12, 243
 """Levels at or below 12 (noise and black clipping) or at or above 243 (saturation)
 do not scale with the light; points with any such channel are left out."""
 MOVED = 0.1
-"""A point whose ratio is more than 10 % from the median on any channel changed for
-another reason than the light (motion, occlusion) and is left out of the mean."""
+"""A point whose ratio is more than 10 % from the median (then from the mean) on any
+channel changed for another reason than the light (motion, occlusion) and is left out of
+the mean."""
 MIN_POINTS = 50
 """Fewer agreeing points than this measure nothing: the step is taken as zero."""
 MAX_LOG_GAIN = 8.0
