@@ -24,7 +24,9 @@ Options: ``--quick`` (smoke test: a few short sequences), ``--out DIR``
 (default ``bench/results/``), ``--sets davis-train,davis-val,synthetic``,
 ``--sequences a,b`` (DAVIS sequences / synthetic conditions),
 ``--trackers efdm,static,skimage``, ``--workers N``, ``--seeds N`` (synthetic seeds
-0..N-1; default 3: seeds beyond them are conditions the defaults never saw).
+0..N-1; default 3: seeds beyond them are conditions the defaults never saw), ``--length
+N`` (frames of every synthetic clip; default 40: a longer clip is the same condition
+drawn slower where its change is spread over the clip, and longer otherwise).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -59,6 +61,9 @@ from bench.tracking.run import ClipResult, pooled_median_ms, same_tracks
 from bench.tracking.sets import ClipSpec, choose, is_partial, limits
 from bench.tracking.trackers import TRACKERS, Factory, factory
 
+MIN_LENGTH = 3
+"""Fewest frames of a synthetic clip: the first and the last are not scored, so three
+leave one that is."""
 TIMED_ORDER = ("davis-val", "davis-train", "synthetic")
 """The set whose timings are the speed figures: the first of these that runs."""
 
@@ -160,6 +165,8 @@ def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
     cv2.setNumThreads(1)
     if args.seeds is not None:
         config = dataclasses.replace(config, synthetic_seeds=args.seeds)
+    if args.length is not None:
+        config = dataclasses.replace(config, synthetic_length=args.length)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -222,7 +229,7 @@ def count(least: int) -> Any:
 
 def arguments(parser: argparse.ArgumentParser) -> None:
     """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
-    ``--seeds`` and ``--nodes``."""
+    ``--seeds``, ``--length`` and ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -247,6 +254,12 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         type=count(1),
         default=None,
         help="seeds 0..N-1 of every synthetic condition (default: 3, with --quick 1)",
+    )
+    parser.add_argument(
+        "--length",
+        type=count(MIN_LENGTH),
+        default=None,
+        help="frames of every synthetic clip (default: 40, with --quick 12)",
     )
     parser.add_argument(
         "--nodes",

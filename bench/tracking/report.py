@@ -149,6 +149,13 @@ def summary_section(results: Results) -> str:
     )
 
 
+def _length(results: Results) -> str:
+    """`` (synthetic clips of N frames)`` when the synthetic set ran, else nothing."""
+    if "synthetic" not in results.sets:
+        return ""
+    return f" (synthetic clips of {results.config.synthetic_length} frames)"
+
+
 def seeds_section(results: Results) -> str:
     """The synthetic conditions over their seeds (when a run draws more than one)."""
     rows = by_condition(results.sets.get("synthetic", []))
@@ -319,7 +326,8 @@ def render(results: Results) -> str:
         f"- python {m['python']}, numpy {m['numpy']}, opencv {m['opencv']}, "
         f"scikit-image {m['skimage']}",
         f"- run: `{results.config.name}`, trackers {', '.join(results.trackers) or 'none'}, "
-        f"sets {', '.join(results.sets) or 'none'}, {results.wall_seconds:.0f} s wall time "
+        f"sets {', '.join(results.sets) or 'none'}{_length(results)}, "
+        f"{results.wall_seconds:.0f} s wall time "
         f"({results.workers} worker process(es); timed set: {results.timed or 'none'})",
     )
     sections = ["\n".join(top), "## Goals\n\n" + goals_table(goals(results))]

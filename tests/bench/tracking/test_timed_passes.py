@@ -58,6 +58,26 @@ def test_a_quick_synthetic_run_times_twice_and_takes_the_seeds_asked_for(tmp_pat
     assert "the same contours in each of 2 passes" in (tmp_path / "tracking.md").read_text()
 
 
+def test_synthetic_clips_take_the_length_asked_for(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    args = ["--quick", "--sets", "synthetic", "--trackers", "efdm", "--length", "7"]
+    assert BENCHMARK.main([*args, "--sequences", "hidden", "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "tracking.json").read_text())
+    assert [clip["frames"] for clip in data["sets"]["synthetic"]] == [7]
+    assert "(synthetic clips of 7 frames)" in (tmp_path / "tracking.md").read_text()
+
+
+@pytest.mark.parametrize("length", ["2", "0", "x"])
+def test_a_synthetic_length_below_three_is_refused(tmp_path: Path, length: str) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    with pytest.raises(SystemExit) as exit_info:
+        BENCHMARK.main(["--quick", "--length", length, "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert not (tmp_path / "tracking.json").exists()
+
+
 def test_seeds_below_one_are_refused(tmp_path: Path) -> None:
     from bench.tracking.main import BENCHMARK
 
