@@ -12,7 +12,7 @@ a pixel's level now to its level in the previous frame (the mean over the points
 near the median, re-centred on itself: a step below a grey level is still measured
 in full, :func:`engine.tracking._lighting_kernel.ratio_step`), twice:
 
-- over the whole frame, at the same pixels (a 4-pixel grid): many pixels, but a
+- over the whole frame, at the same pixels (an 8-pixel grid): many pixels, but a
   camera's pan pairs different points of the scene;
 - over the object's interior carried by its measured motion (the prediction's
   similarity): the same points of the scene, but an object turning or flexing
