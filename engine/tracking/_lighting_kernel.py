@@ -209,6 +209,8 @@ def ratio_step(
         count = _near_sum(ratios[:total], centre, moved, again)
         if count == 0:  # no point near the mean on every channel: keep the last mean
             break
+        if count == kept and (again == sums).all():  # the same points: settled
+            break
         sums[:] = again
         kept = count
     for ch in range(c):
