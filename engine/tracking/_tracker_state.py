@@ -29,6 +29,7 @@ from engine.tracking._state_codec import (
 from engine.tracking.appearance import LEGACY_COLOUR_BITS
 from engine.tracking.lighting import Lighting
 from engine.tracking.memory import Memory
+from engine.tracking.working import working_scale
 
 if TYPE_CHECKING:
     from engine.tracking.tracker import Tracker
@@ -60,7 +61,8 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
     previous = tracker._previous if include_frame else None
     state: dict[str, Any] = {
         "version": STATE_VERSION,
-        "nodes": tracker._nodes.tolist(),
+        # on the working grid with the frame they resume from, else in the frame's pixels
+        "nodes": (tracker._nodes if previous is not None else tracker.nodes).tolist(),
         "options": dataclasses.asdict(tracker.options),
         "frame_index": tracker.frame_index,
         "previous": None,
@@ -84,6 +86,8 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
         state["previous"] = pack_compact_frame(previous, tracker._nodes, room)
     elif previous is not None:
         state["previous"] = pack_image(previous)
+    if previous is not None and tracker._frame_shape is not None:
+        state["frame_shape"] = list(tracker._frame_shape)  # the size of the frames given
     return state
 
 
@@ -120,6 +124,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("align_prediction", False)  # and before the alignment
         options.setdefault("colour_bits", LEGACY_COLOUR_BITS)  # and before 32 colour levels
         options.setdefault("turn_outline", False)  # and before the outline turned
+        options.setdefault("working_side", 0)  # and before the working resolution
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])
@@ -146,6 +151,32 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
                 if isinstance(previous, Mapping)
                 else unpack_image(previous)
             )
+            _regrid(tracker, state.get("frame_shape"))
     except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
         raise ValueError(f"malformed tracker state: {exc}") from None
     return tracker
+
+
+def _regrid(tracker: Tracker, frame_shape: object) -> None:
+    """The restored tracker's frame size and working grid, checked against its previous
+    frame (states written before the working resolution: that frame's size)."""
+    previous = tracker._previous
+    assert previous is not None
+    if frame_shape is None:
+        shape = (previous.shape[0], previous.shape[1])
+    elif (
+        isinstance(frame_shape, list | tuple)
+        and len(frame_shape) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in frame_shape)
+    ):
+        shape = (int(frame_shape[0]), int(frame_shape[1]))
+    else:
+        raise ValueError(f"frame_shape must be [height, width]; got {frame_shape!r}")
+    scale = working_scale(shape, tracker.options.working_side)
+    grid = shape if scale is None else (scale.size[1], scale.size[0])
+    if previous.shape[:2] != grid:
+        raise ValueError(
+            f"the previous frame is {previous.shape[1]} x {previous.shape[0]}; frames of "
+            f"{shape[1]} x {shape[0]} are tracked at {grid[1]} x {grid[0]}"
+        )
+    tracker._frame_shape, tracker._scale = shape, scale

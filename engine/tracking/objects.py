@@ -47,6 +47,7 @@ from engine.tracking.lighting import Lighting
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
+from engine.tracking.working import WORKING_SIDE, working_scale
 
 __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
 
@@ -276,8 +277,12 @@ class ObjectsTracker:
     ) -> SharedMotion | None:
         """The whole frame's background motion, flow and change of light, when two or more
         objects go on from the last frame (one object measures around itself, as a tracker
-        alone)."""
+        alone).  None on frames tracked downscaled (:mod:`engine.tracking.working`): each
+        tracker then measures on its own working grid."""
         previous, light = self._previous, None
+        if working_scale(grey.shape, self.options.get("working_side", WORKING_SIDE)) is not None:
+            self._light = None
+            return None
         if len(silhouettes) >= 2 and self.options.get("lighting", True) is not False:
             sample, step = Lighting.whole(self._light, image)
             light = SharedLight(sample, step) if self._light is not None else None

@@ -21,6 +21,8 @@ and the physics.  Per frame (``step``):
    chain's contour as the shape prior, a minimum cut) and gives the final
    contour; a confident frame teaches the appearance model.
 
+Frames larger than the option ``working_side`` (480 lines) are tracked downscaled to it
+(:mod:`engine.tracking.working`); contours in and out are in the frame's own pixels.
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
@@ -33,6 +35,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -75,6 +78,7 @@ from engine.tracking.stages import (
 )
 from engine.tracking.turn import measure_turn, turned
 from engine.tracking.validity import valid_contour
+from engine.tracking.working import WorkingScale, working_scale
 
 __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
@@ -131,6 +135,11 @@ at 136 nodes, 0.690 -> 0.698).  Not after a re-acquisition in the same absence, 
 contour already is the remembered shape: searching again on probation's frames chained
 jumps (``motorbike`` 0.747 -> 0.700), and after them a validation sequence's
 (``breakdance`` at 128 nodes, 0.358 -> 0.217; :attr:`Memory.reacquired`)."""
+
+
+def _grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A BGR image in grey, as :func:`engine.tracking._frames.as_frame` makes it."""
+    return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), np.uint8)
 
 
 @dataclass(frozen=True, slots=True)
@@ -219,6 +228,10 @@ class Tracker:
                     f"{name} must implement {kind.__name__}; got {type(stage).__name__}"
                 )
         self._nodes = self._initial(nodes)
+        # the frames' size and their working grid (None: tracked as given); until a frame
+        # comes, the contour is in the frame's pixels, afterwards on the grid
+        self._frame_shape: tuple[int, int] | None = None
+        self._scale: WorkingScale | None = None
         # the previous grey frame (None: the next frame starts the track)
         self._previous: NDArray[np.uint8] | None = None
         self.frame_index = -1
@@ -236,13 +249,28 @@ class Tracker:
 
     @property
     def nodes(self) -> NDArray[np.float64]:
-        """The current contour, (N, 2) ``[x, y]`` (a copy)."""
-        return self._nodes.copy()
+        """The current contour, (N, 2) ``[x, y]`` pixels of the frames given (a copy)."""
+        return self._in_frame(self._nodes)
 
     @property
     def previous_frame(self) -> NDArray[np.uint8] | None:
-        """The grey frame the contour is on (None before the first frame)."""
+        """The grey frame the contour is on, on the working grid (downscaled when the
+        frames' shorter side exceeds ``working_side``; None before the first frame)."""
         return self._previous
+
+    def _in_frame(self, nodes: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Working-grid ``[x, y]`` points in the frame's pixels (a copy)."""
+        return nodes.copy() if self._scale is None else self._scale.to_frame(nodes)
+
+    def _regrid(self, shape: tuple[int, int]) -> None:
+        """A first frame, or one of another size: its working grid, the contour put on it,
+        and the frame taken as the first of a track (as a frame of another size always
+        was)."""
+        nodes = self._in_frame(self._nodes)
+        self._frame_shape = shape
+        self._scale = working_scale(shape, self.options.working_side)
+        self._nodes = nodes if self._scale is None else self._scale.to_working(nodes)
+        self._previous = None
 
     @property
     def evidence(self) -> Evidence | None:
@@ -264,8 +292,10 @@ class Tracker:
         return self._previous is not None
 
     def reset(self, nodes: ArrayLike) -> None:
-        """Place a new contour; the next frame is taken as the one it lies on."""
+        """Place a new contour (``[x, y]`` pixels of the next frame); the next frame is
+        taken as the one it lies on."""
         self._nodes = self._initial(nodes)
+        self._frame_shape = self._scale = None
         self._previous = None
         self.motion.reset()
         self._forget_search()
@@ -279,11 +309,14 @@ class Tracker:
         Parameters
         ----------
         frame : numpy.ndarray
-            H x W grey or H x W x 3 BGR uint8.
+            H x W grey or H x W x 3 BGR uint8.  One whose shorter side exceeds the
+            option ``working_side`` is tracked downscaled to it
+            (:mod:`engine.tracking.working`).
 
         Returns
         -------
         TrackResult
+            The contour in ``[x, y]`` pixels of ``frame``.
 
         Raises
         ------
@@ -334,9 +367,17 @@ class Tracker:
             )
         if covered is not None and not covered.any():
             covered = None  # nothing in front: exactly as a tracker alone
-        if shared is not None and not shared.applies_to(self._previous, grey):
-            shared = None
+        if grey.shape != self._frame_shape:
+            self._regrid((grey.shape[0], grey.shape[1]))
         with _repeatable_opencv():
+            scale = self._scale
+            if scale is not None:  # on the working grid; the shared measures are the frame's
+                image = scale.image(image)
+                grey = image if image.ndim == 2 else _grey(image)
+                covered = None if covered is None else scale.mask(covered)
+                shared = None
+            if shared is not None and not shared.applies_to(self._previous, grey):
+                shared = None
             return self._step(image, grey, Crowd(covered, shared))
 
     def _step(
@@ -535,7 +576,7 @@ class Tracker:
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
         status = status_of(confidence)
-        return TrackResult(self._nodes.copy(), iterations, converged, confidence, status)
+        return TrackResult(self._in_frame(self._nodes), iterations, converged, confidence, status)
 
     def _visible(self, grey: NDArray[np.uint8]) -> bool:
         h, w = grey.shape

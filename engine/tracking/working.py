@@ -1,0 +1,111 @@
+"""The working resolution: frames larger than the tracker was tuned for are tracked downscaled.
+
+The tracker's constants are in pixels of 480-line video, the resolution of the DAVIS
+sequences it was tuned and cross-validated on: the cue maps' search radius, the cut's
+band, the Lucas-Kanade windows and pyramid, the motion contrast's averaging window,
+the context kept around the contour.  On larger frames of the same scene each of these
+covers less of the object, and a frame costs more.  The thirty training sequences
+upscaled to 720 lines (x 1.5) and tracked as they are scored J 0.7185 against 0.7485 at
+480 lines, at 1.5 times the time a frame; tracked at the working resolution they score
+0.7444 (1080 lines, x 2.25: 0.7393), at 480-line cost plus the resize
+(``docs/tracking-log.md``, 2026-11-29, afternoon).
+
+:func:`working_scale` decides: a frame whose shorter side exceeds
+:attr:`~engine.tracking.options.TrackerOptions.working_side` is brought down to it
+(the aspect ratio kept, each side rounded to whole pixels), and :class:`WorkingScale`
+converts frames, masks and ``[x, y]`` points between the frame and the working grid.
+Pixel centres correspond as :func:`cv2.resize` maps them: frame ``p`` is working
+``(p + 1/2) f - 1/2``, ``f`` the side's factor.  Coordinates are ``[x, y]`` pixels
+(x = column, y = row), as in OpenCV.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["WORKING_SIDE", "WorkingScale", "downscale", "working_scale"]
+
+WORKING_SIDE = 480
+"""Default shorter side (pixels) of the frames tracked: the DAVIS sequences' 480 lines,
+on which every pixel constant of the tracker was chosen.  Frames of 480 lines or fewer
+are tracked as they are (bit for bit as without the working resolution)."""
+HALF_COVERED = 0.5
+"""A working pixel counts as covered (:mod:`engine.tracking.covering`) when at least
+half of the frame pixels it averages are."""
+
+
+def downscale(image: NDArray[np.uint8], size: tuple[int, int]) -> NDArray[np.uint8]:
+    """``image`` (H x W or H x W x C uint8) brought down to ``size`` = ``(width, height)``.
+
+    Halved by 2 x 2 means (:data:`cv2.INTER_AREA`'s exact fast path) while both sides
+    stay at least twice the wanted ones, then bilinear for the last factor, which is
+    then under 2: a 1080-line frame costs about 1.2 ms instead of the 11 ms of
+    :data:`cv2.INTER_AREA` at a fractional factor (7 ms at 720 lines), and the thirty
+    training sequences upscaled by 1.5 score the same either way (0.7444 against
+    0.7345, within the noise of one track's course).
+    """
+    width, height = size
+    out = image
+    while out.shape[0] >= 2 * height and out.shape[1] >= 2 * width:
+        h, w = out.shape[:2]
+        even = out[: h - h % 2, : w - w % 2]
+        out = np.asarray(cv2.resize(even, (w // 2, h // 2), interpolation=cv2.INTER_AREA))
+    if out.shape[:2] != (height, width):
+        out = np.asarray(cv2.resize(out, (width, height), interpolation=cv2.INTER_LINEAR))
+    return np.ascontiguousarray(out, dtype=np.uint8)
+
+
+@dataclass(frozen=True, slots=True)
+class WorkingScale:
+    """How a frame of ``frame_shape`` maps onto the working grid of ``size``.
+
+    Attributes
+    ----------
+    frame_shape : tuple of int
+        ``(height, width)`` of the frames given.
+    size : tuple of int
+        ``(width, height)`` of the frames tracked (as :func:`cv2.resize` takes it).
+    """
+
+    frame_shape: tuple[int, int]
+    size: tuple[int, int]
+
+    @property
+    def factors(self) -> NDArray[np.float64]:
+        """``[fx, fy]``: working pixels per frame pixel along x and y."""
+        h, w = self.frame_shape
+        return np.array([self.size[0] / w, self.size[1] / h])
+
+    def to_working(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Frame ``[x, y]`` points on the working grid."""
+        out: NDArray[np.float64] = (np.asarray(points, np.float64) + 0.5) * self.factors - 0.5
+        return out
+
+    def to_frame(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Working ``[x, y]`` points in frame pixels."""
+        out: NDArray[np.float64] = (np.asarray(points, np.float64) + 0.5) / self.factors - 0.5
+        return out
+
+    def image(self, image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """A frame (H x W or H x W x 3 uint8 of :attr:`frame_shape`) on the working grid."""
+        return downscale(image, self.size)
+
+    def mask(self, mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """An H x W bool mask on the working grid: pixels at least half covered."""
+        share = cv2.resize(mask.astype(np.float32), self.size, interpolation=cv2.INTER_AREA)
+        return np.asarray(share >= HALF_COVERED, np.bool_)
+
+
+def working_scale(shape: tuple[int, ...], side: int) -> WorkingScale | None:
+    """The working grid of frames of ``shape`` (``(height, width, ...)``), or None when they
+    are tracked as they are (``side`` 0, or the shorter side at most ``side``)."""
+    h, w = int(shape[0]), int(shape[1])
+    if side <= 0 or min(h, w) <= side:
+        return None
+    factor = side / min(h, w)
+    size = (max(1, round(w * factor)), max(1, round(h * factor)))
+    return WorkingScale((h, w), size)

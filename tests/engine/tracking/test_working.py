@@ -1,0 +1,228 @@
+"""engine.tracking.working: frames larger than the working resolution are tracked downscaled."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
+from engine.testing.crowd import make_crowd
+from engine.tracking import ObjectsTracker, Tracker
+from engine.tracking.working import WORKING_SIDE, downscale, working_scale
+from tests.engine.tracking.moving_disc import H, W, assert_same, initial, run, through_json
+
+U8 = NDArray[np.uint8]
+F64 = NDArray[np.float64]
+UP = 2
+"""The moving disc's frames drawn twice as large: tracked on a working grid of their
+original size (``working_side=H``), they are the original clip, give or take the resize."""
+
+
+def upscaled(frame: U8, factor: int = UP) -> U8:
+    h, w = frame.shape[:2]
+    return np.asarray(cv2.resize(frame, (w * factor, h * factor), interpolation=cv2.INTER_LINEAR))
+
+
+def larger(nodes: F64, factor: float = UP) -> F64:
+    """``[x, y]`` points of a frame in pixels of the frame scaled by ``factor``."""
+    result: F64 = (nodes + 0.5) * factor - 0.5
+    return result
+
+
+@pytest.mark.parametrize(
+    ("shape", "side", "size"),
+    [
+        ((720, 1280), 480, (853, 480)),  # a 720p camera
+        ((1080, 1920, 3), 480, (853, 480)),
+        ((1920, 1080), 480, (480, 853)),  # portrait: the shorter side is the width
+        ((2160, 3840), 480, (853, 480)),
+        ((240, 400), 120, (200, 120)),
+    ],
+)
+def test_frames_above_the_working_side_are_brought_down_to_it(
+    shape: tuple[int, ...], side: int, size: tuple[int, int]
+) -> None:
+    scale = working_scale(shape, side)
+    assert scale is not None
+    assert scale.size == size
+    assert scale.frame_shape == shape[:2]
+
+
+@pytest.mark.parametrize(
+    ("shape", "side"), [((480, 854), 480), ((120, 200), 480), ((720, 1280), 0)]
+)
+def test_frames_at_or_below_the_working_side_or_side_0_are_tracked_as_they_are(
+    shape: tuple[int, int], side: int
+) -> None:
+    assert working_scale(shape, side) is None
+
+
+def test_points_map_pixel_centres_as_opencv_resizes() -> None:
+    scale = working_scale((720, 1280), 480)
+    assert scale is not None
+    # the frame's outer edges (pixel -1/2 and size - 1/2) are the grid's
+    edges = np.array([[-0.5, -0.5], [1279.5, 719.5]])
+    np.testing.assert_allclose(scale.to_working(edges), [[-0.5, -0.5], [852.5, 479.5]])
+    points = np.random.default_rng(0).uniform(0, 700, (50, 2))
+    np.testing.assert_allclose(scale.to_frame(scale.to_working(points)), points, atol=1e-9)
+    # a bright pixel's centre lands where the resized image is brightest
+    frame = np.zeros((720, 1280), np.uint8)
+    frame[300:306, 600:606] = 255
+    small = scale.image(frame)
+    ys, xs = np.nonzero(small == small.max())
+    centre = scale.to_working(np.array([[602.5, 302.5]]))[0]
+    assert abs(xs.mean() - centre[0]) < 0.6
+    assert abs(ys.mean() - centre[1]) < 0.6
+
+
+def test_downscale_halves_exactly_then_interpolates() -> None:
+    rng = np.random.default_rng(1)
+    image = rng.integers(0, 256, (1080, 1920, 3), dtype=np.uint8)
+    out = downscale(image, (853, 480))
+    assert out.shape == (480, 853, 3)
+    assert out.dtype == np.uint8
+    # an exact halving is the 2 x 2 mean, as INTER_AREA gives it
+    half = downscale(image, (960, 540))
+    means = image.reshape(540, 2, 960, 2, 3).astype(np.float64).mean(axis=(1, 3))
+    assert np.abs(half - means).max() <= 0.5 + 1e-9
+    flat = np.full((720, 1280), 77, np.uint8)
+    assert (downscale(flat, (853, 480)) == 77).all()
+
+
+def test_a_mask_counts_working_pixels_at_least_half_covered() -> None:
+    scale = working_scale((8, 8), 4)
+    assert scale is not None
+    assert scale.size == (4, 4)
+    mask = np.zeros((8, 8), np.bool_)
+    mask[0, 0:2] = True  # half of working pixel (0, 0)
+    mask[2, 2] = True  # a quarter of working pixel (1, 1)
+    out = scale.mask(mask)
+    assert out.dtype == np.bool_
+    assert out.shape == (4, 4)
+    assert out[0, 0]
+    assert not out[1, 1]
+    assert out.sum() == 1
+
+
+@pytest.mark.parametrize("side", [-1, 1, 63, 16385, 480.0, True, "480", None])
+def test_a_bad_working_side_is_refused(side: Any) -> None:
+    with pytest.raises(ValueError, match="working_side must be 0 or an integer"):
+        Tracker(initial(), working_side=side)
+
+
+def test_the_default_is_480_lines() -> None:
+    assert Tracker(initial()).options.working_side == WORKING_SIDE == 480
+
+
+def test_a_large_frame_is_tracked_on_the_working_grid_as_the_small_one(
+    frames: list[U8],
+) -> None:
+    small = run(Tracker(initial()), frames)
+    tracker = Tracker(larger(initial()), working_side=H)
+    big = run(tracker, [upscaled(f) for f in frames])
+    previous = tracker.previous_frame
+    assert previous is not None
+    assert previous.shape == (H, W)
+    for a, b in zip(small, big, strict=True):
+        # in the large frame's pixels, where the small track is, give or take the resize
+        shape = (H * UP, W * UP)
+        overlap = mask_iou(contour_to_mask(larger(a.nodes), shape), contour_to_mask(b.nodes, shape))
+        assert overlap > 0.95
+    np.testing.assert_allclose(tracker.nodes, big[-1].nodes)
+    assert big[0].nodes == pytest.approx(larger(initial()))  # the first frame: as given
+
+
+def test_without_a_working_side_the_frame_is_tracked_as_it_is(frames: list[U8]) -> None:
+    tracker = Tracker(larger(initial()), working_side=0)
+    run(tracker, [upscaled(f) for f in frames[:2]])
+    previous = tracker.previous_frame
+    assert previous is not None
+    assert previous.shape == (H * UP, W * UP)
+
+
+def test_a_frame_of_another_size_restarts_on_its_own_grid(frames: list[U8]) -> None:
+    tracker = Tracker(larger(initial()), working_side=H)
+    run(tracker, [upscaled(f) for f in frames[:3]])
+    here = tracker.nodes
+    # the same pixels of a frame as large again: the contour stays, the grid changes
+    result = tracker.step(upscaled(frames[3], 4))
+    np.testing.assert_allclose(result.nodes, here, atol=1e-9)
+    previous = tracker.previous_frame
+    assert previous is not None
+    assert previous.shape == (H, W)
+    # then a frame at the working size itself: tracked as it is
+    result = tracker.step(frames[4])
+    np.testing.assert_allclose(result.nodes, here, atol=1e-9)
+    assert tracker.previous_frame is not None
+    assert tracker.previous_frame.shape == (H, W)
+
+
+def test_a_state_on_the_working_grid_resumes_exactly(frames: list[U8]) -> None:
+    big = [upscaled(f) for f in frames[:10]]
+    tracker = Tracker(larger(initial()), working_side=H)
+    run(tracker, big[:5])
+    state = through_json(tracker.to_state())
+    assert state["frame_shape"] == [H * UP, W * UP]
+    expected = run(tracker, big[5:])
+    restored = Tracker.from_state(state)
+    np.testing.assert_array_equal(restored.nodes, Tracker.from_state(state).nodes)
+    for a, b in zip(run(restored, big[5:]), expected, strict=True):
+        assert_same(a, b)
+
+
+def test_a_state_without_its_frame_keeps_the_contour_in_frame_pixels(frames: list[U8]) -> None:
+    tracker = Tracker(larger(initial()), working_side=H)
+    run(tracker, [upscaled(f) for f in frames[:3]])
+    state = through_json(tracker.to_state(include_frame=False))
+    assert "frame_shape" not in state
+    restored = Tracker.from_state(state)
+    np.testing.assert_allclose(restored.nodes, tracker.nodes, atol=1e-9)
+    result = restored.step(upscaled(frames[3]))  # a first frame again: as given
+    np.testing.assert_allclose(result.nodes, tracker.nodes, atol=1e-9)
+
+
+def test_a_state_from_before_the_working_resolution_resumes_at_full_resolution(
+    frames: list[U8],
+) -> None:
+    big = [upscaled(f) for f in frames[:6]]
+    tracker = Tracker(larger(initial()), working_side=0)
+    run(tracker, big[:3])
+    state = through_json(tracker.to_state())
+    del state["options"]["working_side"], state["frame_shape"]
+    restored = Tracker.from_state(state)
+    assert restored.options.working_side == 0
+    for a, b in zip(run(restored, big[3:]), run(tracker, big[3:]), strict=True):
+        assert_same(a, b)
+
+
+@pytest.mark.parametrize(
+    "frame_shape", [[240], [240, 0], ["240", 400], [240.0, 400], 7, [480, 900]]
+)
+def test_a_state_with_a_bad_frame_shape_is_refused(frame_shape: Any, frames: list[U8]) -> None:
+    tracker = Tracker(larger(initial()), working_side=H)
+    run(tracker, [upscaled(f) for f in frames[:2]])
+    state = through_json(tracker.to_state())
+    state["frame_shape"] = frame_shape  # [480, 900]: a grid of 200 x 120 is not that frame's
+    with pytest.raises(ValueError, match="malformed tracker state"):
+        Tracker.from_state(state)
+
+
+def test_several_objects_on_large_frames_are_tracked_in_frame_pixels() -> None:
+    crowd = make_crowd(seed=3, count=3, length=8)
+    frames = [upscaled(f) for f in crowd.frames]
+    shape = frames[0].shape[:2]
+    masks = [
+        [cv2.resize(m, shape[::-1], interpolation=cv2.INTER_NEAREST) for m in object_masks]
+        for object_masks in crowd.masks
+    ]
+    tracker = ObjectsTracker({k: mask_to_contour(masks[k][0], 64) for k in range(3)})
+    overlaps = np.zeros((3, len(frames)))
+    for t, frame in enumerate(frames):
+        for k, r in enumerate(tracker.step(frame)):  # in the order the objects were given
+            assert r.id == k
+            overlaps[k, t] = mask_iou(contour_to_mask(r.contours[0], shape), masks[k][t])
+    assert (overlaps[:, 1:].mean(axis=1) >= 0.9).all()
