@@ -43,6 +43,9 @@ class Config(BaseConfig):
     synthetic_seeds : int
         Seeds each synthetic condition is drawn with (0, 1, ...): one seed's layout can be
         kind or cruel to a tracker, several show the condition.
+    davis_resize : float
+        Factor the DAVIS frames and masks are resized by before tracking (1: as they are;
+        1.5 is a 720-line camera's view of the same scenes).
     """
 
     train_count: int | None
@@ -55,6 +58,7 @@ class Config(BaseConfig):
     davis_sheets: int = 5
     synthetic_sheets: int = 3
     synthetic_seeds: int = 1
+    davis_resize: float = 1.0
 
 
 FULL = Config("full", None, None, None, None, 40, None, 15, synthetic_seeds=3)

@@ -156,6 +156,11 @@ def notes_section(results: CvResults) -> str:
     return "\n".join(lines)
 
 
+def _resized(factor: float) -> str:
+    """``, DAVIS frames and masks resized by F`` when they were, else nothing."""
+    return "" if factor == 1.0 else f", DAVIS frames and masks resized by {factor:g}"
+
+
 def render(results: CvResults) -> str:
     """The whole markdown report."""
     m = results.machine
@@ -169,7 +174,7 @@ def render(results: CvResults) -> str:
         f"- run: `{results.config.name}`, grid {axes or 'empty'} ({len(results.grid)} points), "
         f"{len(results.folds)} folds, nodes {', '.join(map(str, results.nodes))} (a sequence's "
         f"J: the mean over them), {results.workers} worker process(es), "
-        f"{results.wall_seconds:.0f} s wall time",
+        f"{results.wall_seconds:.0f} s wall time{_resized(results.config.davis_resize)}",
     )
     sections = ["\n".join(top), "## Goals\n\n" + goals_table(goals(results))]
     if results.overall is not None:

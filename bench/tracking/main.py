@@ -26,7 +26,9 @@ Options: ``--quick`` (smoke test: a few short sequences), ``--out DIR``
 ``--trackers efdm,static,skimage``, ``--workers N``, ``--seeds N`` (synthetic seeds
 0..N-1; default 3: seeds beyond them are conditions the defaults never saw), ``--length
 N`` (frames of every synthetic clip; default 40: a longer clip is the same condition
-drawn slower where its change is spread over the clip, and longer otherwise).
+drawn slower where its change is spread over the clip, and longer otherwise), ``--resize
+F`` (the DAVIS frames and masks resized by F before tracking and scoring: 1.5 and 2.25 are
+720- and 1080-line views of the same scenes).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -64,6 +66,8 @@ from bench.tracking.trackers import TRACKERS, Factory, factory
 MIN_LENGTH = 3
 """Fewest frames of a synthetic clip: the first and the last are not scored, so three
 leave one that is."""
+MIN_RESIZE, MAX_RESIZE = 0.25, 4.0
+"""Resize factors of ``--resize``: 120 to 1920 lines from DAVIS's 480."""
 TIMED_ORDER = ("davis-val", "davis-train", "synthetic")
 """The set whose timings are the speed figures: the first of these that runs."""
 
@@ -167,6 +171,8 @@ def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
         config = dataclasses.replace(config, synthetic_seeds=args.seeds)
     if args.length is not None:
         config = dataclasses.replace(config, synthetic_length=args.length)
+    if args.resize is not None:
+        config = dataclasses.replace(config, davis_resize=args.resize)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -227,9 +233,22 @@ def count(least: int) -> Any:
     return parse
 
 
+def factor(text: str) -> float:
+    """An argparse type: a resize factor in [:data:`MIN_RESIZE`, :data:`MAX_RESIZE`]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number; got {text!r}") from None
+    if not MIN_RESIZE <= value <= MAX_RESIZE:
+        raise argparse.ArgumentTypeError(
+            f"must be in [{MIN_RESIZE:g}, {MAX_RESIZE:g}]; got {value:g}"
+        )
+    return value
+
+
 def arguments(parser: argparse.ArgumentParser) -> None:
     """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
-    ``--seeds``, ``--length`` and ``--nodes``."""
+    ``--seeds``, ``--length``, ``--resize`` and ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -260,6 +279,13 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         type=count(MIN_LENGTH),
         default=None,
         help="frames of every synthetic clip (default: 40, with --quick 12)",
+    )
+    parser.add_argument(
+        "--resize",
+        type=factor,
+        default=None,
+        help="resize the DAVIS frames and masks by this factor before tracking (1.5: 720 "
+        "lines; default 1)",
     )
     parser.add_argument(
         "--nodes",

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from bench.common.data import Clip, Frame
 from bench.tracking.goals import GOALS
 from bench.tracking.run import ClipResult, mean_j
-from bench.tracking.sets import ClipSpec, is_davis
+from bench.tracking.sets import ClipSpec, is_davis, resized
 from bench.tracking.tables import worst_first
 from bench.tracking.trackers import Nodes
 
@@ -206,4 +206,7 @@ def write_sheets(
         *worst_first(davis_clips)[:davis],
         *worst_first(sets.get("synthetic", []))[:synthetic],
     ]
-    return [save_sheet(ClipSpec(c.source, c.name, c.frames).load(), c, out) for c in chosen]
+    return [
+        save_sheet(resized(ClipSpec(c.source, c.name, c.frames).load(), c.shape), c, out)
+        for c in chosen
+    ]

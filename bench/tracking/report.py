@@ -28,7 +28,7 @@ from bench.tracking.goals import (
 )
 from bench.tracking.metrics import REACQUIRE_FRAMES, SetScore
 from bench.tracking.run import ClipResult, mean_j
-from bench.tracking.sets import TITLES
+from bench.tracking.sets import TITLES, is_davis
 from bench.tracking.tables import (
     SCORE_HEADERS,
     score_cells,
@@ -150,10 +150,14 @@ def summary_section(results: Results) -> str:
 
 
 def _length(results: Results) -> str:
-    """`` (synthetic clips of N frames)`` when the synthetic set ran, else nothing."""
-    if "synthetic" not in results.sets:
-        return ""
-    return f" (synthetic clips of {results.config.synthetic_length} frames)"
+    """`` (synthetic clips of N frames)`` when the synthetic set ran, and `` (DAVIS frames
+    resized by F)`` when they were, else nothing."""
+    notes = []
+    if "synthetic" in results.sets:
+        notes.append(f"synthetic clips of {results.config.synthetic_length} frames")
+    if results.config.davis_resize != 1.0 and any(is_davis(s) for s in results.sets):
+        notes.append(f"DAVIS frames and masks resized by {results.config.davis_resize:g}")
+    return f" ({'; '.join(notes)})" if notes else ""
 
 
 def seeds_section(results: Results) -> str:

@@ -17,10 +17,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
+import numpy as np
+
 from bench.common.data import (
     DAVIS_ROOT,
     DAVIS_TRAIN_ROOT,
     Clip,
+    Frame,
+    Mask,
     davis_names,
     load_davis,
     load_synthetic,
@@ -51,18 +56,45 @@ class ClipSpec:
         Sequence or condition.
     frames : int or None
         DAVIS: the first frames only (None: all); synthetic: the sequence's length.
+    resize : float
+        DAVIS: the factor its frames and masks are resized by (1: as they are).
     """
 
     set: str
     name: str
     frames: int | None
+    resize: float = 1.0
 
     def load(self) -> Clip:
         """The clip's frames and masks (its ``source`` is the set)."""
         if self.set == "synthetic":
             clip = load_synthetic(self.name, self.frames or 0)
             return Clip(clip.name, self.set, clip.frames, clip.masks, clip.visible)
-        return load_davis(self.name, self.frames, DAVIS_ROOTS[self.set], source=self.set)
+        clip = load_davis(self.name, self.frames, DAVIS_ROOTS[self.set], source=self.set)
+        if self.resize == 1.0:
+            return clip
+        h, w = clip.frames[0].shape[:2]
+        return resized(clip, (round(h * self.resize), round(w * self.resize)))
+
+
+def resized(clip: Clip, shape: tuple[int, int]) -> Clip:
+    """``clip`` with its frames and masks brought to ``shape`` (height, width): frames by
+    bicubic interpolation up, pixel areas down, masks by the nearest pixel."""
+    h, w = shape
+    if clip.frames[0].shape[:2] == (h, w):
+        return clip
+    up = h > clip.frames[0].shape[0]
+    how = cv2.INTER_CUBIC if up else cv2.INTER_AREA
+
+    def frame(image: Frame) -> Frame:
+        return np.asarray(cv2.resize(image, (w, h), interpolation=how), np.uint8)
+
+    def mask(image: Mask) -> Mask:
+        return np.asarray(cv2.resize(image, (w, h), interpolation=cv2.INTER_NEAREST), np.uint8)
+
+    frames = tuple(frame(f) for f in clip.frames)
+    masks = tuple(mask(m) for m in clip.masks)
+    return Clip(clip.name, clip.source, frames, masks, clip.visible)
 
 
 def is_davis(set_name: str) -> bool:
@@ -99,8 +131,11 @@ def choose(
         "davis-val": config.val_count,
         "synthetic": config.synthetic_count,
     }[set_name]
-    frames = config.synthetic_length if set_name == "synthetic" else config.davis_frames
-    return [ClipSpec(set_name, name, frames) for name in select(names, wanted, count)], None
+    synthetic = set_name == "synthetic"
+    frames = config.synthetic_length if synthetic else config.davis_frames
+    resize = 1.0 if synthetic else config.davis_resize
+    chosen = select(names, wanted, count)
+    return [ClipSpec(set_name, name, frames, resize) for name in chosen], None
 
 
 def is_partial(config: Config, set_name: str, specs: Sequence[ClipSpec]) -> bool:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.common.data import davis_names
 from bench.tracking.config import TIMED_PASSES
 from bench.tracking.goals import MEDIAN_MS_GOAL, fastest, repeat_goal, speed_goals
 from bench.tracking.run import ClipResult, TrackRun, same_tracks
@@ -83,5 +84,48 @@ def test_seeds_below_one_are_refused(tmp_path: Path) -> None:
 
     with pytest.raises(SystemExit) as exit_info:
         BENCHMARK.main(["--quick", "--seeds", "0", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert not (tmp_path / "tracking.json").exists()
+
+
+def test_resized_brings_frames_and_masks_to_the_shape_asked_for() -> None:
+    from bench.common.data import Clip
+    from bench.tracking.sets import resized
+
+    frame = np.zeros((8, 12, 3), np.uint8)
+    frame[2:6, 3:9] = 200
+    mask = np.zeros((8, 12), np.uint8)
+    mask[2:6, 3:9] = 255
+    clip = Clip("a", "davis-val", (frame, frame), (mask, mask))
+    assert resized(clip, (8, 12)) is clip
+    big = resized(clip, (12, 18))
+    assert [f.shape for f in big.frames] == [(12, 18, 3)] * 2
+    assert [m.shape for m in big.masks] == [(12, 18)] * 2
+    assert set(np.unique(big.masks[0])) == {0, 255}  # still a mask: nearest pixel
+    assert np.count_nonzero(big.masks[0]) == pytest.approx(1.5**2 * 24, rel=0.25)
+    small = resized(clip, (4, 6))
+    assert small.frames[0].shape == (4, 6, 3)
+    assert small.frames[0][2, 3, 0] == 200  # areas averaged: inside stays inside
+
+
+@pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
+def test_davis_clips_take_the_resize_asked_for(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    args = ["--quick", "--sets", "davis-val", "--trackers", "efdm", "--resize", "1.5"]
+    assert BENCHMARK.main([*args, "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "tracking.json").read_text())
+    clips = data["sets"]["davis-val"]
+    assert clips
+    assert all(clip["shape"] == [720, 1281] for clip in clips)  # 480 x 854, by 1.5
+    assert "DAVIS frames and masks resized by 1.5" in (tmp_path / "tracking.md").read_text()
+
+
+@pytest.mark.parametrize("resize", ["0.2", "5", "x", "nan"])
+def test_a_resize_out_of_range_is_refused(tmp_path: Path, resize: str) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    with pytest.raises(SystemExit) as exit_info:
+        BENCHMARK.main(["--quick", "--resize", resize, "--out", str(tmp_path)])
     assert exit_info.value.code == 2
     assert not (tmp_path / "tracking.json").exists()
