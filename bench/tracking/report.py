@@ -100,9 +100,11 @@ def efdm_score(clips: Sequence[ClipResult]) -> SetScore:
     return SetScore.of(c.runs["efdm"] for c in clips if "efdm" in c.runs)
 
 
-def speed_where(name: str) -> str:
-    """How the goals name the timed set's frames."""
-    return "synthetic 480x640" if name == "synthetic" else f"{name} 480p"
+def speed_where(name: str, resize: float = 1.0) -> str:
+    """How the goals name the timed set's frames (DAVIS resized: their lines)."""
+    if name == "synthetic":
+        return "synthetic 480x640"
+    return f"{name} {round(480 * resize)}p"
 
 
 def goals(results: Results) -> list[GoalLine]:
@@ -113,7 +115,7 @@ def goals(results: Results) -> list[GoalLine]:
     synthetic = results.sets.get("synthetic", [])
     lines = accuracy_goals(scores, synthetic, PLAIN, results.partial)
     if results.timed is not None:
-        where = speed_where(results.timed)
+        where = speed_where(results.timed, results.config.davis_resize)
         lines += speed_goals(results.pass_ms, where)
         if results.passes > 1:
             lines.append(repeat_goal(results.repeatable, results.passes, where))

@@ -118,7 +118,9 @@ def test_davis_clips_take_the_resize_asked_for(tmp_path: Path) -> None:
     clips = data["sets"]["davis-val"]
     assert clips
     assert all(clip["shape"] == [720, 1281] for clip in clips)  # 480 x 854, by 1.5
-    assert "DAVIS frames and masks resized by 1.5" in (tmp_path / "tracking.md").read_text()
+    text = (tmp_path / "tracking.md").read_text()
+    assert "DAVIS frames and masks resized by 1.5" in text
+    assert "davis-val 720p" in text  # the speed goals name the frames' size
 
 
 @pytest.mark.parametrize("resize", ["0.2", "5", "x", "nan"])
