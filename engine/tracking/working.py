@@ -4,11 +4,12 @@ The tracker's constants are in pixels of 480-line video, the resolution of the D
 sequences it was tuned and cross-validated on: the cue maps' search radius, the cut's
 band, the Lucas-Kanade windows and pyramid, the motion contrast's averaging window,
 the context kept around the contour.  On larger frames of the same scene each of these
-covers less of the object, and a frame costs more.  The thirty training sequences
-upscaled to 720 lines (x 1.5) and tracked as they are scored J 0.7185 against 0.7485 at
-480 lines, at 1.5 times the time a frame; tracked at the working resolution they score
-0.7444 (1080 lines, x 2.25: 0.7393), at 480-line cost plus the resize
-(``docs/tracking-log.md``, 2026-11-29, afternoon).
+covers less of the object, and a frame costs more.  The thirty training sequences drawn
+at 720 lines (x 1.5) and tracked as they are score J 0.722 (0.754 at 480 lines), at 1080
+lines 0.679 (decay +0.201), and a frame takes 1.7 and 2.6 times as long; tracked at the
+working resolution, 0.748 and 0.748 (decay +0.097), at about 1.1 and 1.2 times a
+480-line frame's time (``python -m bench.tracking --cv "working_side=0,480" --resize
+1.5``; ``docs/tracking-log.md``, 2026-11-29, afternoon).
 
 :func:`working_scale` decides: a frame whose shorter side exceeds
 :attr:`~engine.tracking.options.TrackerOptions.working_side` is brought down to it
