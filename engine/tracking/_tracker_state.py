@@ -125,6 +125,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("colour_bits", LEGACY_COLOUR_BITS)  # and before 32 colour levels
         options.setdefault("turn_outline", False)  # and before the outline turned
         options.setdefault("working_side", 0)  # and before the working resolution
+        options.setdefault("grey_texture", False)  # and before grey frames' texture
         tracker = make(state["nodes"], **options)
         tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
         tracker.frame_index = int(state["frame_index"])

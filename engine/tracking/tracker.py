@@ -22,7 +22,9 @@ and the physics.  Per frame (``step``):
    contour; a confident frame teaches the appearance model.
 
 Frames larger than the option ``working_side`` (480 lines) are tracked downscaled to it
-(:mod:`engine.tracking.working`); contours in and out are in the frame's own pixels.
+(:mod:`engine.tracking.working`); contours in and out are in the frame's own pixels.  A
+grey frame is described to the colour models by its grey level and two texture channels
+(option ``grey_texture``, :mod:`engine.tracking.texture`).
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
@@ -76,6 +78,7 @@ from engine.tracking.stages import (
     Prediction,
     Segmentation,
 )
+from engine.tracking.texture import is_grey, texture_image
 from engine.tracking.turn import measure_turn, turned
 from engine.tracking.validity import valid_contour
 from engine.tracking.working import WorkingScale, working_scale
@@ -378,6 +381,10 @@ class Tracker:
                 shared = None
             if shared is not None and not shared.applies_to(self._previous, grey):
                 shared = None
+            if self.options.grey_texture and is_grey(image):  # the colour models read texture
+                image = texture_image(grey)
+                if shared is not None:  # the frame's light was measured on its grey
+                    shared = dataclasses.replace(shared, light=None)
             return self._step(image, grey, Crowd(covered, shared))
 
     def _step(
