@@ -46,6 +46,8 @@ class Config(BaseConfig):
     davis_resize : float
         Factor the DAVIS frames and masks are resized by before tracking (1: as they are;
         1.5 is a 720-line camera's view of the same scenes).
+    davis_grey : bool
+        Whether the DAVIS frames are turned grey before tracking (a grey camera's view).
     """
 
     train_count: int | None
@@ -59,6 +61,7 @@ class Config(BaseConfig):
     synthetic_sheets: int = 3
     synthetic_seeds: int = 1
     davis_resize: float = 1.0
+    davis_grey: bool = False
 
 
 FULL = Config("full", None, None, None, None, 40, None, 15, synthetic_seeds=3)

@@ -7,6 +7,7 @@ from typing import Any
 
 from bench.common.output import finite, run_json
 from bench.common.report import GoalLine, fmt, goals_json, goals_table, header, load_line, md_table
+from bench.tracking.config import Config
 from bench.tracking.cv import CvResults
 from bench.tracking.goals import accuracy_goals
 from bench.tracking.metrics import SetScore
@@ -156,9 +157,12 @@ def notes_section(results: CvResults) -> str:
     return "\n".join(lines)
 
 
-def _resized(factor: float) -> str:
-    """``, DAVIS frames and masks resized by F`` when they were, else nothing."""
-    return "" if factor == 1.0 else f", DAVIS frames and masks resized by {factor:g}"
+def _resized(config: Config) -> str:
+    """``, DAVIS frames and masks resized by F`` and ``, DAVIS frames in grey`` when they
+    were, else nothing."""
+    factor = config.davis_resize
+    grey = ", DAVIS frames in grey" if config.davis_grey else ""
+    return grey if factor == 1.0 else f", DAVIS frames and masks resized by {factor:g}{grey}"
 
 
 def render(results: CvResults) -> str:
@@ -174,7 +178,7 @@ def render(results: CvResults) -> str:
         f"- run: `{results.config.name}`, grid {axes or 'empty'} ({len(results.grid)} points), "
         f"{len(results.folds)} folds, nodes {', '.join(map(str, results.nodes))} (a sequence's "
         f"J: the mean over them), {results.workers} worker process(es), "
-        f"{results.wall_seconds:.0f} s wall time{_resized(results.config.davis_resize)}",
+        f"{results.wall_seconds:.0f} s wall time{_resized(results.config)}",
     )
     sections = ["\n".join(top), "## Goals\n\n" + goals_table(goals(results))]
     if results.overall is not None:

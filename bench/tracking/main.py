@@ -28,7 +28,8 @@ Options: ``--quick`` (smoke test: a few short sequences), ``--out DIR``
 N`` (frames of every synthetic clip; default 40: a longer clip is the same condition
 drawn slower where its change is spread over the clip, and longer otherwise), ``--resize
 F`` (the DAVIS frames and masks resized by F before tracking and scoring: 1.5 and 2.25 are
-720- and 1080-line views of the same scenes).
+720- and 1080-line views of the same scenes), ``--grey`` (the DAVIS frames turned grey, as
+a grey camera gives them).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -173,6 +174,8 @@ def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
         config = dataclasses.replace(config, synthetic_length=args.length)
     if args.resize is not None:
         config = dataclasses.replace(config, davis_resize=args.resize)
+    if args.grey:
+        config = dataclasses.replace(config, davis_grey=True)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -248,7 +251,7 @@ def factor(text: str) -> float:
 
 def arguments(parser: argparse.ArgumentParser) -> None:
     """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
-    ``--seeds``, ``--length``, ``--resize`` and ``--nodes``."""
+    ``--seeds``, ``--length``, ``--resize``, ``--grey`` and ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -286,6 +289,9 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="resize the DAVIS frames and masks by this factor before tracking (1.5: 720 "
         "lines; default 1)",
+    )
+    parser.add_argument(
+        "--grey", action="store_true", help="turn the DAVIS frames grey before tracking"
     )
     parser.add_argument(
         "--nodes",

@@ -157,8 +157,11 @@ def _length(results: Results) -> str:
     notes = []
     if "synthetic" in results.sets:
         notes.append(f"synthetic clips of {results.config.synthetic_length} frames")
-    if results.config.davis_resize != 1.0 and any(is_davis(s) for s in results.sets):
+    davis = any(is_davis(s) for s in results.sets)
+    if results.config.davis_resize != 1.0 and davis:
         notes.append(f"DAVIS frames and masks resized by {results.config.davis_resize:g}")
+    if results.config.davis_grey and davis:
+        notes.append("DAVIS frames in grey")
     return f" ({'; '.join(notes)})" if notes else ""
 
 

@@ -58,12 +58,15 @@ class ClipSpec:
         DAVIS: the first frames only (None: all); synthetic: the sequence's length.
     resize : float
         DAVIS: the factor its frames and masks are resized by (1: as they are).
+    grey : bool
+        DAVIS: its frames turned grey (H x W).
     """
 
     set: str
     name: str
     frames: int | None
     resize: float = 1.0
+    grey: bool = False
 
     def load(self) -> Clip:
         """The clip's frames and masks (its ``source`` is the set)."""
@@ -71,10 +74,18 @@ class ClipSpec:
             clip = load_synthetic(self.name, self.frames or 0)
             return Clip(clip.name, self.set, clip.frames, clip.masks, clip.visible)
         clip = load_davis(self.name, self.frames, DAVIS_ROOTS[self.set], source=self.set)
-        if self.resize == 1.0:
-            return clip
-        h, w = clip.frames[0].shape[:2]
-        return resized(clip, (round(h * self.resize), round(w * self.resize)))
+        if self.resize != 1.0:
+            h, w = clip.frames[0].shape[:2]
+            clip = resized(clip, (round(h * self.resize), round(w * self.resize)))
+        if self.grey:
+            frames = tuple(_grey(f) for f in clip.frames)
+            clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
+        return clip
+
+
+def _grey(frame: Frame) -> Frame:
+    """A BGR frame in grey (H x W), as OpenCV converts it."""
+    return np.asarray(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), np.uint8)
 
 
 def resized(clip: Clip, shape: tuple[int, int]) -> Clip:
@@ -134,8 +145,9 @@ def choose(
     synthetic = set_name == "synthetic"
     frames = config.synthetic_length if synthetic else config.davis_frames
     resize = 1.0 if synthetic else config.davis_resize
+    grey = not synthetic and config.davis_grey
     chosen = select(names, wanted, count)
-    return [ClipSpec(set_name, name, frames, resize) for name in chosen], None
+    return [ClipSpec(set_name, name, frames, resize, grey) for name in chosen], None
 
 
 def is_partial(config: Config, set_name: str, specs: Sequence[ClipSpec]) -> bool:

@@ -131,3 +131,25 @@ def test_a_resize_out_of_range_is_refused(tmp_path: Path, resize: str) -> None:
         BENCHMARK.main(["--quick", "--resize", resize, "--out", str(tmp_path)])
     assert exit_info.value.code == 2
     assert not (tmp_path / "tracking.json").exists()
+
+
+def test_a_grey_clip_has_grey_frames_and_the_same_masks() -> None:
+    from bench.tracking.sets import ClipSpec
+
+    names = davis_names()
+    if not names:
+        pytest.skip("no DAVIS validation sequences here")
+    colour = ClipSpec("davis-val", names[0], 3).load()
+    grey = ClipSpec("davis-val", names[0], 3, grey=True).load()
+    assert [f.shape for f in grey.frames] == [f.shape[:2] for f in colour.frames]
+    for a, b in zip(grey.masks, colour.masks, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
+def test_a_grey_run_says_so(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    args = ["--quick", "--sets", "davis-val", "--trackers", "efdm", "--grey"]
+    assert BENCHMARK.main([*args, "--sequences", davis_names()[0], "--out", str(tmp_path)]) == 0
+    assert "DAVIS frames in grey" in (tmp_path / "tracking.md").read_text()
