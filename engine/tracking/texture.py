@@ -5,16 +5,18 @@ The appearance models (:mod:`engine.tracking.appearance`, the cut's local window
 each pixel's colour.  A grey frame (an infrared or security camera, a grey video decoded
 to three equal channels) leaves them one channel of 32 levels, and an object is rarely
 told from its surroundings by its grey level alone: the thirty DAVIS training sequences
-turned grey score J 0.557 (decay +0.323) against 0.749 in colour.
+turned grey score J 0.556 (decay +0.324) against 0.750 in colour.
 
 :func:`texture_image` gives such a frame two more channels that describe the texture
 around each pixel, so that the same models read three: the grey level, the **edge
 energy** (the gradient's magnitude averaged over a few pixels: a furry animal against
 smooth water, a patterned shirt against a plain wall) and the **local contrast** (the
-grey level's standard deviation over a wider window).  The thirty in grey then score
-0.665 (decay +0.144; ``docs/tracking-log.md``, 2026-11-29, afternoon).  The motion model
-and the edges still read the grey frame itself.  Coordinates are ``[x, y]`` pixels
-(x = column, y = row), as in OpenCV.
+grey level's mean absolute deviation over a wider window).  The thirty in grey then score
+0.637 / decay +0.229 over five node counts, against 0.556 / +0.324 without (``python -m
+bench.tracking --cv "grey_texture=false,true" --grey --nodes 112,120,128,136,144``;
+``docs/tracking-log.md``, 2026-11-29, afternoon).  The motion model and the edges still
+read the grey frame itself.  Coordinates are ``[x, y]`` pixels (x = column, y = row), as
+in OpenCV.
 """
 
 from __future__ import annotations
@@ -26,29 +28,33 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "CONTRAST_BOX",
     "CONTRAST_GAIN",
-    "CONTRAST_SIGMA",
-    "EDGE_SCALE",
-    "EDGE_SIGMA",
+    "EDGE_BOX",
+    "EDGE_GAIN",
     "GREY_SAMPLE",
     "GREY_TOLERANCE",
     "is_grey",
     "texture_image",
 ]
 
-EDGE_SIGMA: Final = 2.0
-"""Gaussian (pixels) the gradient magnitude is averaged over: the edge energy of a
-pixel's neighbourhood, a few pixels across, rather than of the pixel."""
-EDGE_SCALE: Final = 4.0
-"""Gradient magnitude (3 x 3 Sobel, up to about 1,440 on a step of 255) per level of the
-edge-energy channel: a step of 60 grey levels, a clear edge, averaged over the
-neighbourhood, reads about 60 levels; strong texture saturates at 255."""
-CONTRAST_SIGMA: Final = 4.0
-"""Gaussian (pixels) of the window whose standard deviation is the local contrast: twice
-the edge energy's, so the two channels describe the texture at two scales."""
-CONTRAST_GAIN: Final = 2.0
-"""Levels of the contrast channel per grey level of standard deviation: a texture of
-+-20 levels reads 40; 128 and over saturate."""
+EDGE_BOX: Final = 5
+"""Side (half-resolution pixels) of the box the gradient's magnitude is averaged over:
+about a Gaussian of 3 frame pixels, the edge energy of a pixel's neighbourhood rather than
+of the pixel."""
+EDGE_GAIN: Final = 0.25
+"""Levels of the edge-energy channel per unit of |d/dx| + |d/dy| (3 x 3 Sobel at half
+resolution, up to 2,040): a lone step of 60 grey levels, averaged over the box, reads
+about 24 at the step (three bins of the colour models' 32); a fine texture of +-40
+levels, an edge every pixel or two, reads 50 and more (at 0.125, 0.643 against 0.649 on
+the thirty in grey at 128 nodes, a tie, with the texture's levels in fewer bins)."""
+CONTRAST_BOX: Final = 7
+"""Side (half-resolution pixels) of the window of the local contrast: about a Gaussian of
+4 frame pixels, wider than the edge energy's, so the two channels describe the texture at
+two scales."""
+CONTRAST_GAIN: Final = 2.5
+"""Levels of the contrast channel per grey level of mean absolute deviation from the
+window's mean (about 0.8 of a standard deviation): a texture of +-20 levels reads 40."""
 GREY_TOLERANCE: Final = 2
 """Largest difference (levels) between a pixel's channels for a colour frame to count as
 grey: a grey source decoded to BGR, with a level of rounding."""
@@ -70,6 +76,13 @@ def is_grey(image: NDArray[np.uint8]) -> bool:
 def texture_image(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """H x W x 3 uint8: the grey level, the edge energy and the local contrast of ``grey``.
 
+    The two texture channels are averages over several pixels, measured at half
+    resolution in integers and drawn back up bilinearly: about 2.5 ms a 480-line frame.
+    Measured in floats at full resolution with Gaussians they scored the thirty in grey a
+    little higher (0.658 / +0.182 over five node counts) but cost 16 ms; the variants in
+    between (box filters, half-resolution averages of a full-resolution gradient) scored
+    0.642-0.648 for 5-11 ms (``docs/tracking-log.md``).
+
     Parameters
     ----------
     grey : numpy.ndarray
@@ -78,20 +91,28 @@ def texture_image(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:
     Returns
     -------
     numpy.ndarray
-        Channels (in the places of B, G, R): ``grey``; the Sobel gradient magnitude
-        averaged by a Gaussian of :data:`EDGE_SIGMA`, divided by :data:`EDGE_SCALE`; the
-        standard deviation over a Gaussian window of :data:`CONTRAST_SIGMA` times
-        :data:`CONTRAST_GAIN`; each clipped to 0-255.
+        Channels (in the places of B, G, R): ``grey``; the gradient's L1 magnitude times
+        :data:`EDGE_GAIN`, averaged over a box of :data:`EDGE_BOX`; the mean absolute
+        deviation from the mean over a box of :data:`CONTRAST_BOX`, times
+        :data:`CONTRAST_GAIN` (the boxes' sides at half resolution); each rounded and
+        saturated to 0-255.
     """
-    g = np.asarray(grey, np.float32)
-    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3)
-    edges = cv2.GaussianBlur(cv2.magnitude(gx, gy), (0, 0), EDGE_SIGMA) / np.float32(EDGE_SCALE)
-    mean = cv2.GaussianBlur(g, (0, 0), CONTRAST_SIGMA)
-    square = cv2.GaussianBlur(g * g, (0, 0), CONTRAST_SIGMA)
-    contrast = np.sqrt(np.maximum(square - mean * mean, 0.0)) * np.float32(CONTRAST_GAIN)
-    out = np.empty((*grey.shape, 3), np.uint8)
-    out[..., 0] = grey
-    out[..., 1] = np.clip(edges, 0, 255)
-    out[..., 2] = np.clip(contrast, 0, 255)
-    return out
+    h, w = grey.shape
+    g = cv2.resize(grey, (max(w // 2, 1), max(h // 2, 1)), interpolation=cv2.INTER_AREA)
+    gx = cv2.Sobel(g, cv2.CV_16S, 1, 0, ksize=3)
+    gy = cv2.Sobel(g, cv2.CV_16S, 0, 1, ksize=3)
+    slope = cv2.add(
+        cv2.convertScaleAbs(gx, alpha=EDGE_GAIN), cv2.convertScaleAbs(gy, alpha=EDGE_GAIN)
+    )
+    edges = cv2.boxFilter(slope, cv2.CV_16U, (EDGE_BOX, EDGE_BOX), normalize=False)
+    mean = cv2.boxFilter(g, -1, (CONTRAST_BOX, CONTRAST_BOX))
+    deviation = cv2.boxFilter(
+        cv2.absdiff(g, mean), cv2.CV_16U, (CONTRAST_BOX, CONTRAST_BOX), normalize=False
+    )
+    channels = [
+        cv2.convertScaleAbs(edges, alpha=1.0 / EDGE_BOX**2),
+        cv2.convertScaleAbs(deviation, alpha=CONTRAST_GAIN / CONTRAST_BOX**2),
+    ]
+    # each channel drawn up on its own: contiguous planes merge in a tenth of the time
+    up = [cv2.resize(c, (w, h), interpolation=cv2.INTER_LINEAR) for c in channels]
+    return np.asarray(cv2.merge([np.ascontiguousarray(grey), *up]), np.uint8)
