@@ -32,6 +32,7 @@ __all__ = [
     "CONTRAST_GAIN",
     "EDGE_BOX",
     "EDGE_GAIN",
+    "GREY_GLANCE",
     "GREY_SAMPLE",
     "GREY_TOLERANCE",
     "is_grey",
@@ -58,6 +59,8 @@ window's mean (about 0.8 of a standard deviation): a texture of +-20 levels read
 GREY_TOLERANCE: Final = 2
 """Largest difference (levels) between a pixel's channels for a colour frame to count as
 grey: a grey source decoded to BGR, with a level of rounding."""
+GREY_GLANCE: Final = 31
+"""Every 31st pixel along each axis is checked first (about 430 of a 480-line frame)."""
 GREY_SAMPLE: Final = 7
 """Every 7th pixel along each axis is checked (a prime, so a regular pattern of colour
 cannot hide between the samples): about 2 % of the frame."""
@@ -68,9 +71,13 @@ def is_grey(image: NDArray[np.uint8]) -> bool:
     three equal within :data:`GREY_TOLERANCE` on every sampled pixel."""
     if image.ndim == 2:
         return True
-    sample = image[::GREY_SAMPLE, ::GREY_SAMPLE].astype(np.int16)
-    spread = sample.max(axis=2) - sample.min(axis=2)
-    return bool(spread.max(initial=0) <= GREY_TOLERANCE)
+    # a coarse look first: a colour frame is almost always told at once (tens of
+    # microseconds instead of half a millisecond for the fine grid)
+    for step in (GREY_GLANCE, GREY_SAMPLE):
+        sample = image[::step, ::step].astype(np.int16)
+        if (sample.max(axis=2) - sample.min(axis=2)).max(initial=0) > GREY_TOLERANCE:
+            return False
+    return True
 
 
 def texture_image(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:
