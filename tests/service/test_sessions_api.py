@@ -577,3 +577,20 @@ def test_a_session_may_ask_for_a_shorter_life(client: TestClient, settings: Sett
     assert sorted(round(lifetime(s), -1) for s in listed) == sorted([120.0, round(longest, -1)])
     for bad in (0, -5, "soon"):
         error_of(client.post("/v1/sessions", json={**CIRCLE, "ttl_seconds": bad}), 422)
+
+
+def test_a_720p_camera_is_followed_in_its_own_pixels(client: TestClient) -> None:
+    """Frames above 480 lines are tracked downscaled inside (``working_side``); the
+    contour the API returns is in the posted frame's pixels."""
+    sid = create(client, {"circle": {"center": [400, 360], "radius": 120}})["id"]
+    for k in range(4):
+        cx = 400.0 + 24.0 * k
+        frame = disc_frame(cx, 360.0, r=120, shape=(720, 1280))
+        body = post_frame(client, sid, frame).json()
+        nodes = as_array(body["nodes"])
+        centre = nodes.mean(axis=0)
+        radius = np.linalg.norm(nodes - centre, axis=1).mean()
+        assert abs(centre[0] - cx) < 3.0
+        assert abs(centre[1] - 360.0) < 3.0
+        assert abs(radius - 120.0) < 4.0
+        assert body["reset"] is None
