@@ -68,7 +68,18 @@ cannot hide between the samples): about 2 % of the frame."""
 
 def is_grey(image: NDArray[np.uint8]) -> bool:
     """Whether ``image`` (H x W, or H x W x 3 BGR uint8) carries no colour: one channel, or
-    three equal within :data:`GREY_TOLERANCE` on every sampled pixel."""
+    three equal within :data:`GREY_TOLERANCE` on every sampled pixel.
+
+    Raises
+    ------
+    ValueError
+        If ``image`` is not an H x W or H x W x 3 array.
+    """
+    if not isinstance(image, np.ndarray) or not (
+        image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)
+    ):
+        shape = image.shape if isinstance(image, np.ndarray) else type(image)
+        raise ValueError(f"is_grey takes an H x W or H x W x 3 image; got {shape}")
     if image.ndim == 2:
         return True
     # a coarse look first: a colour frame is almost always told at once (tens of
@@ -103,7 +114,17 @@ def texture_image(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:
         deviation from the mean over a box of :data:`CONTRAST_BOX`, times
         :data:`CONTRAST_GAIN` (the boxes' sides at half resolution); each rounded and
         saturated to 0-255.
+
+    Raises
+    ------
+    ValueError
+        If ``grey`` is not a non-empty H x W uint8 array.
     """
+    if not isinstance(grey, np.ndarray) or grey.dtype != np.uint8 or grey.ndim != 2:
+        kind = f"{grey.dtype} {grey.shape}" if isinstance(grey, np.ndarray) else type(grey)
+        raise ValueError(f"texture_image takes an H x W uint8 grey frame; got {kind}")
+    if grey.size == 0:
+        raise ValueError("texture_image takes a non-empty frame; got 0 pixels")
     h, w = grey.shape
     g = cv2.resize(grey, (max(w // 2, 1), max(h // 2, 1)), interpolation=cv2.INTER_AREA)
     gx = cv2.Sobel(g, cv2.CV_16S, 1, 0, ksize=3)

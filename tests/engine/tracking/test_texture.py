@@ -128,3 +128,25 @@ def test_a_state_from_before_grey_texture_resumes_without_it() -> None:
 def test_grey_texture_must_be_true_or_false(value: object) -> None:
     with pytest.raises(ValueError, match="grey_texture must be true or false"):
         Tracker(circle_nodes(centre(0), R, 64), grey_texture=value)
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [
+        np.zeros((4, 5, 3), np.uint8),
+        np.zeros((4, 5), np.float32),
+        np.zeros((0, 5), np.uint8),
+        [[1, 2], [3, 4]],
+    ],
+)
+def test_texture_image_refuses_what_is_not_a_grey_frame(frame: object) -> None:
+    with pytest.raises(ValueError, match="texture_image takes"):
+        texture_image(frame)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "image", [np.zeros((4, 5, 4), np.uint8), np.zeros((4,), np.uint8), "frame"]
+)
+def test_is_grey_refuses_what_is_not_an_image(image: object) -> None:
+    with pytest.raises(ValueError, match="is_grey takes"):
+        is_grey(image)  # type: ignore[arg-type]

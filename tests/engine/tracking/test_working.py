@@ -226,3 +226,17 @@ def test_several_objects_on_large_frames_are_tracked_in_frame_pixels() -> None:
             assert r.id == k
             overlaps[k, t] = mask_iou(contour_to_mask(r.contours[0], shape), masks[k][t])
     assert (overlaps[:, 1:].mean(axis=1) >= 0.9).all()
+
+
+@pytest.mark.parametrize(("shape", "side"), [((0, 640), 480), ((480,), 480), ((720, 1280), -1)])
+def test_working_scale_refuses_a_bad_shape_or_side(shape: tuple[int, ...], side: int) -> None:
+    with pytest.raises(ValueError, match="must be"):
+        working_scale(shape, side)
+
+
+@pytest.mark.parametrize("size", [(0, 480), (853, 0), (1300, 480), (853, 800)])
+def test_downscale_refuses_a_size_it_cannot_bring_the_image_down_to(
+    size: tuple[int, int],
+) -> None:
+    with pytest.raises(ValueError, match="size must be"):
+        downscale(np.zeros((720, 1280), np.uint8), size)
