@@ -13,6 +13,7 @@ from bench.tracking.goals import accuracy_goals
 from bench.tracking.metrics import SetScore
 from bench.tracking.pool import Options, describe
 from bench.tracking.report import clip_json, efdm_score, protocol_notes, score_json
+from bench.tracking.sets import davis_view
 from bench.tracking.tables import RUN_HEADERS, SCORE_HEADERS, run_cells, score_cells, sequence_table
 
 NOT_TUNED = "not tuned on"
@@ -160,9 +161,7 @@ def notes_section(results: CvResults) -> str:
 def _resized(config: Config) -> str:
     """``, DAVIS frames and masks resized by F`` and ``, DAVIS frames in grey`` when they
     were, else nothing."""
-    factor = config.davis_resize
-    grey = ", DAVIS frames in grey" if config.davis_grey else ""
-    return grey if factor == 1.0 else f", DAVIS frames and masks resized by {factor:g}{grey}"
+    return "".join(f", {note}" for note in davis_view(config))
 
 
 def render(results: CvResults) -> str:

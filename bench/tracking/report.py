@@ -28,7 +28,7 @@ from bench.tracking.goals import (
 )
 from bench.tracking.metrics import REACQUIRE_FRAMES, SetScore
 from bench.tracking.run import ClipResult, mean_j
-from bench.tracking.sets import TITLES, is_davis
+from bench.tracking.sets import TITLES, davis_view, is_davis
 from bench.tracking.tables import (
     SCORE_HEADERS,
     score_cells,
@@ -157,11 +157,8 @@ def _length(results: Results) -> str:
     notes = []
     if "synthetic" in results.sets:
         notes.append(f"synthetic clips of {results.config.synthetic_length} frames")
-    davis = any(is_davis(s) for s in results.sets)
-    if results.config.davis_resize != 1.0 and davis:
-        notes.append(f"DAVIS frames and masks resized by {results.config.davis_resize:g}")
-    if results.config.davis_grey and davis:
-        notes.append("DAVIS frames in grey")
+    if any(is_davis(s) for s in results.sets):
+        notes.extend(davis_view(results.config))
     return f" ({'; '.join(notes)})" if notes else ""
 
 

@@ -108,6 +108,16 @@ def resized(clip: Clip, shape: tuple[int, int]) -> Clip:
     return Clip(clip.name, clip.source, frames, masks, clip.visible)
 
 
+def davis_view(config: Config) -> list[str]:
+    """How a run changed the DAVIS frames before tracking (for its run line; empty: not)."""
+    notes = []
+    if config.davis_resize != 1.0:
+        notes.append(f"DAVIS frames and masks resized by {config.davis_resize:g}")
+    if config.davis_grey:
+        notes.append("DAVIS frames in grey")
+    return notes
+
+
 def is_davis(set_name: str) -> bool:
     """Whether a set is made of DAVIS sequences."""
     return set_name in DAVIS_ROOTS

@@ -37,7 +37,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -138,11 +137,6 @@ at 136 nodes, 0.690 -> 0.698).  Not after a re-acquisition in the same absence, 
 contour already is the remembered shape: searching again on probation's frames chained
 jumps (``motorbike`` 0.747 -> 0.700), and after them a validation sequence's
 (``breakdance`` at 128 nodes, 0.358 -> 0.217; :attr:`Memory.reacquired`)."""
-
-
-def _grey(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """A BGR image in grey, as :func:`engine.tracking._frames.as_frame` makes it."""
-    return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), np.uint8)
 
 
 @dataclass(frozen=True, slots=True)
@@ -375,8 +369,7 @@ class Tracker:
         with _repeatable_opencv():
             scale = self._scale
             if scale is not None:  # on the working grid; the shared measures are the frame's
-                image = scale.image(image)
-                grey = image if image.ndim == 2 else _grey(image)
+                image, grey = _as_frame(scale.image(image))
                 covered = None if covered is None else scale.mask(covered)
                 shared = None
             if shared is not None and not shared.applies_to(self._previous, grey):
