@@ -374,17 +374,19 @@ class Tracker:
                 shared = None
             if shared is not None and not shared.applies_to(self._previous, grey):
                 shared = None
-            if self.options.grey_texture and is_grey(image):  # the colour models read texture
+            textured = self.options.grey_texture and is_grey(image)
+            if textured:  # the colour models read texture, the confidence reads it so
                 image = texture_image(grey)
                 if shared is not None:  # the frame's light was measured on its grey
                     shared = dataclasses.replace(shared, light=None)
-            return self._step(image, grey, Crowd(covered, shared))
+            return self._step(image, grey, Crowd(covered, shared), textured)
 
     def _step(
         self,
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
         crowd: Crowd,
+        textured: bool = False,
     ) -> TrackResult:
         self.frame_index += 1
         self._evidence = None
@@ -417,8 +419,9 @@ class Tracker:
                 if angle is not None:  # the outline turns as far as the object
                     motion = turned(motion, self._nodes, angle)
             memory.outline = follow(memory.outline, motion, prediction.nodes, hold)
+        outline, marks = memory.outline, memory.marks
         attempt = self._attempt(
-            image, grey, prediction, self.cues, hold, crowd, memory.outline, memory.marks
+            image, grey, prediction, self.cues, hold, crowd, outline, marks, textured=textured
         )
         visible = self._visible(grey)
         share = covered_share(crowd.covered, prediction.nodes)
@@ -431,7 +434,7 @@ class Tracker:
             retry = self._search(image, grey, prediction)
             if retry is not None:
                 moved = carry(hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
-                other = self._attempt(image, grey, retry, cues, moved, crowd)
+                other = self._attempt(image, grey, retry, cues, moved, crowd, textured=textured)
                 margin = attempt.score + REACQUIRE_MARGIN
                 if other.score >= self.options.reacquire_above and other.score > margin:
                     if memory.outline is not None:  # the remembered outline goes along
@@ -481,13 +484,17 @@ class Tracker:
         crowd: Crowd,
         outline: NDArray[np.float64] | None = None,
         marks: NDArray[np.float64] | None = None,
+        *,
+        textured: bool = False,
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result.
 
         Given the remembered ``outline``, the nodes held on the first frame that show no
         colour step now are put back on it where they lie outside it
         (:mod:`engine.tracking.shape_memory`): held as the outline's ``marks`` say where
-        they are given, else as ``hold`` says.
+        they are given, else as ``hold`` says.  ``textured``: the frame is grey and
+        ``image`` its texture (:mod:`engine.tracking.texture`), which the confidence
+        reads with its grey model (:data:`engine.tracking.confidence.GREY_COEFFICIENTS`).
         """
         maps = cues.maps(image, grey, prediction, self.appearance)
         if maps.in_front:
@@ -532,7 +539,9 @@ class Tracker:
             nodes = cut
         found = evidence(maps, nodes, refinement.converged, self._memory.outline)
         usual_in, usual_out = self._memory.usual_with(found.inside, found.outside)
-        found = dataclasses.replace(found, usual_inside=usual_in, usual_outside=usual_out)
+        found = dataclasses.replace(
+            found, usual_inside=usual_in, usual_outside=usual_out, grey=textured
+        )
         return _Attempt(refinement, nodes, found, calibrated(found), search_score(found))
 
     def _search(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -10,6 +11,7 @@ from engine.geometry import circle_nodes, contour_to_mask
 from engine.tracking.confidence import (
     COEFFICIENTS,
     EMPTY_BELOW,
+    GREY_COEFFICIENTS,
     LOST_BELOW,
     SEPARATION_BELOW,
     TRACKING_FROM,
@@ -205,6 +207,45 @@ def test_the_tracker_shows_the_evidence_behind_its_confidence(frames: list[U8]) 
     assert Tracker.from_state(tracker.to_state()).evidence is None  # not a state
     tracker.step(np.zeros((2, 2, 3), np.uint8))  # nothing to track in so small a frame
     assert tracker.evidence is None
+
+
+def test_grey_evidence_is_read_with_the_grey_model() -> None:
+    def logistic(model: tuple[float, ...], e: Evidence) -> float:
+        features = [e.inside, e.outside, float(e.settled), e.motion_inside, e.motion_outside]
+        features += [float(e.motion_seen), e.shape, *e.change]
+        return float(1.0 / (1.0 + np.exp(-(model[0] + np.dot(model[1:], features)))))
+
+    e = Evidence(0.7, 0.25, True, 0.5, -0.5, True, 0.8, usual_inside=0.75, usual_outside=0.2)
+    grey = Evidence(0.7, 0.25, True, 0.5, -0.5, True, 0.8, 0.75, 0.2, grey=True)
+    assert calibrated(e) == pytest.approx(logistic(COEFFICIENTS, e))
+    assert calibrated(grey) == pytest.approx(logistic(GREY_COEFFICIENTS, grey))
+    assert calibrated(grey) != pytest.approx(calibrated(e), abs=1e-3)
+    # the same caps, and the same direction in every input that matters
+    assert calibrated(Evidence(0.3, 0.1, True, grey=True)) <= UNCONFIRMED
+    assert calibrated(Evidence(0.6, 0.55, True, grey=True)) <= UNCONFIRMED
+    grid = np.linspace(0.4, 1.0, 7)
+    inside = [calibrated(Evidence(p, 0.1, True, grey=True)) for p in grid]
+    shape = [calibrated(Evidence(0.8, 0.2, True, shape=p, grey=True)) for p in grid]
+    assert np.all(np.diff(inside) > 0)
+    assert np.all(np.diff(shape) > 0)
+    assert status_of(calibrated(Evidence(0.95, 0.05, True, grey=True))) == "tracking"
+
+
+def test_the_tracker_reads_a_grey_frames_evidence_with_the_grey_model(
+    frames: list[U8],
+) -> None:
+    grey = [np.asarray(cv2.cvtColor(f, cv2.COLOR_BGR2GRAY), np.uint8) for f in frames[:4]]
+    for texture in (True, False):
+        tracker = Tracker(initial(), grey_texture=texture)
+        for frame in grey:
+            result = tracker.step(frame)
+        assert tracker.evidence is not None
+        assert tracker.evidence.grey is texture  # without texture, colour models read it
+        assert result.confidence == calibrated(tracker.evidence)
+    colour = Tracker(initial())
+    run(colour, frames[:4])
+    assert colour.evidence is not None
+    assert not colour.evidence.grey
 
 
 def test_the_ring_is_read_against_how_it_usually_looks() -> None:
