@@ -60,10 +60,11 @@ bench-seeds: $(STAMP)
 bench-service: $(STAMP)
 	$(BIN)/python -m bench.serving
 
-## bench-studies: the confidence model held out, Redis state size and resume quality, snapping
-## boxes, several objects (DAVIS, crowd)
+## bench-studies: the confidence models held out (colour and grey frames), Redis state size
+## and resume quality, snapping boxes, several objects (DAVIS, crowd)
 bench-studies: $(STAMP)
 	$(BIN)/python -m bench.tracking.confidence
+	$(BIN)/python -m bench.tracking.confidence --grey
 	$(BIN)/python -m bench.serving.state
 	$(BIN)/python -m bench.tracking.snap
 	$(BIN)/python -m bench.tracking.objects

@@ -12,7 +12,7 @@ import multiprocessing
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, TypeVar
@@ -56,25 +56,35 @@ def study_main(
     argv: list[str] | None,
     doc: str | None,
     stem: str,
-    run: Callable[[dict[str, Path], bool], dict[str, Any]],
+    run: Callable[..., dict[str, Any]],
     render: Callable[[dict[str, Any], float], str],
     quick_help: str,
+    flags: Mapping[str, str] | None = None,
 ) -> int:
-    """Parse ``--quick`` and ``--out``, run over the sets, write and print the report.
+    """Parse ``--quick``, ``--out`` and the study's own ``flags``, run over the sets, write
+    and print the report.
+
+    ``flags`` maps a switch's name (``"grey"`` is ``--grey``) to its help.  ``run`` gets
+    the sets and ``--quick``, then each switch as a keyword; each switch given adds
+    ``_<name>`` to the files' stem (``confidence_grey.md``).
 
     Returns 1 (with a message on stderr) when no DAVIS set is there, else 0.
     """
     parser = argparse.ArgumentParser(description=(doc or stem).splitlines()[0])
     parser.add_argument("--quick", action="store_true", help=quick_help)
     parser.add_argument("--out", type=Path, default=RESULTS, help="output directory")
+    for name, text in (flags or {}).items():
+        parser.add_argument(f"--{name}", action="store_true", help=text)
     args = parser.parse_args(argv)
+    switches = {name: bool(getattr(args, name)) for name in flags or {}}
+    stem += "".join(f"_{name}" for name, given in switches.items() if given)
     single_threaded()
     sets = davis_sets()
     if not sets:
         print(f"{stem}: no DAVIS data under ../shared/data", file=sys.stderr)
         return 1
     start = time.perf_counter()
-    results = run(sets, args.quick)
+    results = run(sets, args.quick, **switches)
     seconds = time.perf_counter() - start
     report = render(results, seconds)
     write_results(args.out, stem, report, {"sets": results, "wall_seconds": seconds})

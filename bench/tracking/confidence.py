@@ -19,6 +19,13 @@ benchmark), and writes ``confidence.md`` and ``confidence.json``:
   and the threshold it gives the shipped model (what
   :data:`~engine.tracking.confidence.TRACKING_FROM` is set to).
 
+``--grey`` does all of it with the frames turned grey (as a grey camera gives them; the
+tracker reads their texture, :mod:`engine.tracking.texture`), for the grey frames' model
+(:data:`~engine.tracking.confidence.GREY_COEFFICIENTS`), and writes
+``confidence_grey.md`` and ``.json``.  That model is shipped with its bias moved so that
+the rule's threshold falls on :data:`~engine.tracking.confidence.TRACKING_FROM`: the report
+gives the bias it would need.
+
 The contours do not depend on the confidence model, so one tracking run serves every fold.
 """
 
@@ -65,9 +72,10 @@ UNSEEN, CAPPED, PLAIN = 0, 1, 2
 frame), capped just below ``tracking`` (probation after a re-acquisition), or the model's."""
 
 
-def _sequence(job: tuple[str, str, str, int]) -> dict[str, Any]:
-    """Track one sequence; each scored frame's features, kind, confidence and IoU."""
-    label, name, root, nodes = job
+def _sequence(job: tuple[str, str, str, int, bool]) -> dict[str, Any]:
+    """Track one sequence (in grey if asked); each scored frame's features, kind,
+    confidence and IoU."""
+    label, name, root, nodes, grey = job
     import cv2
 
     cv2.setNumThreads(1)
@@ -81,6 +89,8 @@ def _sequence(job: tuple[str, str, str, int]) -> dict[str, Any]:
     rows: list[list[float]] = []
     last = len(clip.frames) - 1
     for i, (frame, mask) in enumerate(zip(clip.frames, clip.masks, strict=True)):
+        if grey:
+            frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), np.uint8)
         result = tracker.step(frame)
         e = tracker.evidence
         if i in (0, last):
@@ -226,19 +236,21 @@ def cross_validate(rows: dict[str, list[list[float]]], folds: int) -> dict[str, 
     return {"pooled": pooled, "folds": per_fold}
 
 
-def run(sets: dict[str, Path], quick: bool) -> dict[str, Any]:
-    """Track every sequence at every node count on two processes; score and cross-validate."""
-    from engine.tracking.confidence import COEFFICIENTS, TRACKING_FROM
+def run(sets: dict[str, Path], quick: bool, grey: bool = False) -> dict[str, Any]:
+    """Track every sequence at every node count on two processes (its frames turned grey
+    with ``grey``); score and cross-validate."""
+    from engine.tracking.confidence import COEFFICIENTS, GREY_COEFFICIENTS, TRACKING_FROM
 
+    model = GREY_COEFFICIENTS if grey else COEFFICIENTS
     counts = (128,) if quick else NODE_COUNTS
     jobs = [
-        (label, name, str(root), n)
+        (label, name, str(root), n, grey)
         for label, root in sets.items()
         for name in davis_names(root)[: QUICK_SEQUENCES if quick else None]
         for n in counts
     ]
     done = on_two_processes(_sequence, jobs)
-    out: dict[str, Any] = {"node_counts": list(counts)}
+    out: dict[str, Any] = {"node_counts": list(counts), "grey": grey}
     for label in sets:
         by_name: dict[str, list[list[float]]] = {}
         for d in done:
@@ -254,17 +266,24 @@ def run(sets: dict[str, Path], quick: bool) -> dict[str, Any]:
             figures["cross_validated"] = cross_validate(by_name, FOLDS)
             keep = choose_keep(by_name)
             features, kind, _, iou = _arrays([r for rows in by_name.values() for r in rows])
-            shipped = reported(np.asarray(COEFFICIENTS), features, kind, 1.0)
+            shipped = reported(np.asarray(model), features, kind, 1.0)
             fitted, threshold = fit_rule([r for rows in by_name.values() for r in rows], keep)
             figures["rule"] = {
                 "keep": keep,
                 "shipped_threshold": choose_threshold(shipped, kind, iou, keep),
                 "fitted": [round(float(w), 4) for w in fitted],
                 "fitted_threshold": threshold,
+                "bias_at_tracking_from": round(
+                    float(fitted[0] + _logit(TRACKING_FROM) - _logit(threshold)), 4
+                ),
             }
         out[label] = figures
-    out["shipped_model"] = {"coefficients": list(COEFFICIENTS), "tracking_from": TRACKING_FROM}
+    out["shipped_model"] = {"coefficients": list(model), "tracking_from": TRACKING_FROM}
     return out
+
+
+def _logit(p: float) -> float:
+    return math.log(p / (1.0 - p))
 
 
 def _cells(d: dict[str, Any]) -> str:
@@ -281,11 +300,15 @@ def _cells(d: dict[str, Any]) -> str:
 def render(results: dict[str, Any], seconds: float) -> str:
     """The markdown report."""
     counts = ", ".join(str(n) for n in results["node_counts"])
+    grey = bool(results.get("grey"))
+    name = "GREY_COEFFICIENTS" if grey else "COEFFICIENTS"
     lines = [
-        "# Lost detection: the confidence model on sequences it was not fitted on",
+        "# Lost detection: the confidence model on sequences it was not fitted on"
+        + (" (grey frames)" if grey else ""),
         "",
         f"- date: {time.strftime('%Y-%m-%dT%H:%M:%S%z')}; {seconds:.0f} s wall time;"
-        " `python -m bench.tracking.confidence`",
+        f" `python -m bench.tracking.confidence{' --grey' if grey else ''}`",
+        *(["- the DAVIS frames turned grey (the tracker reads their texture)"] if grey else []),
         f"- default tracker, nodes {counts} (every frame of each counts once); frames 1..T-2;"
         f" cross-validated: {FOLDS} folds of the thirty, the model refitted and the threshold"
         " chosen on the other folds: the share of their good frames it keeps tracking, of"
@@ -323,7 +346,8 @@ def render(results: dict[str, Any], seconds: float) -> str:
             f" shipped model's threshold under it {rule['shipped_threshold']:.3f}"
             f" (shipped: {shipped}).  The model fitted to all thirty:"
             f" {tuple(rule['fitted'])}, threshold {rule['fitted_threshold']:.3f}"
-            " (shipped: the coefficients of `engine.tracking.confidence.COEFFICIENTS`).",
+            f" (shipped: the coefficients of `engine.tracking.confidence.{name}`); its bias"
+            f" for that threshold to fall on {shipped}: {rule['bias_at_tracking_from']}.",
         ]
     lines.append("")
     return "\n".join(lines)
@@ -331,7 +355,8 @@ def render(results: dict[str, Any], seconds: float) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     quick = f"{QUICK_SEQUENCES} sequences a set, 128 nodes"
-    return study_main(argv, __doc__, "confidence", run, render, quick)
+    flags = {"grey": "turn the frames grey: the grey frames' model (confidence_grey.md)"}
+    return study_main(argv, __doc__, "confidence", run, render, quick, flags)
 
 
 if __name__ == "__main__":

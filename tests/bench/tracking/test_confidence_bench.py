@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -166,3 +167,26 @@ def test_without_davis_data_it_says_so_and_exits_1(
     with pytest.raises(SystemExit) as exit_:
         bench.main(["--folds", "3"])  # not an option of this study
     assert exit_.value.code == 2
+
+
+def test_grey_fits_the_grey_frames_model_into_its_own_files(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    seen: dict[str, bool] = {}
+
+    def fake_run(sets: dict[str, Path], quick: bool, grey: bool = False) -> dict[str, Any]:
+        seen.update(quick=quick, grey=grey)
+        return {"node_counts": [128], "grey": grey}
+
+    monkeypatch.setattr(bench, "run", fake_run)
+    monkeypatch.setattr("bench.common.study.davis_sets", lambda: {"davis-train": tmp_path})
+    assert bench.main(["--grey", "--quick", "--out", str(tmp_path)]) == 0
+    assert seen == {"quick": True, "grey": True}
+    report = (tmp_path / "confidence_grey.md").read_text()
+    assert "(grey frames)" in report
+    assert "--grey" in report
+    assert json.loads((tmp_path / "confidence_grey.json").read_text())["sets"]["grey"]
+    assert not (tmp_path / "confidence.md").exists()  # the colour model's stay as they are
+    assert bench.main(["--out", str(tmp_path)]) == 0
+    assert seen == {"quick": False, "grey": False}
+    assert "(grey frames)" not in (tmp_path / "confidence.md").read_text()
