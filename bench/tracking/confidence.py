@@ -82,7 +82,6 @@ def _sequence(job: tuple[str, str, str, int, bool]) -> dict[str, Any]:
     from bench.common.data import load_davis
     from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
     from engine.tracking import Tracker
-    from engine.tracking.confidence import calibrated
 
     clip = load_davis(name, root=Path(root))
     tracker = Tracker(mask_to_contour(clip.masks[0], nodes))
@@ -100,7 +99,7 @@ def _sequence(job: tuple[str, str, str, int, bool]) -> dict[str, Any]:
             rows.append([0.0] * FEATURES + [UNSEEN, result.confidence, iou])
             continue
         kind = UNSEEN if result.confidence == 0.0 else PLAIN
-        if kind == PLAIN and result.confidence < calibrated(e):
+        if kind == PLAIN and tracker.unconfirmed:
             kind = CAPPED  # on probation (calibrated has its own cap, applied in reported)
         features = [e.inside, e.outside, e.settled, e.motion_inside, e.motion_outside]
         features += [e.motion_seen, e.shape, *e.change]

@@ -235,6 +235,7 @@ class Tracker:
         self._memory = Memory.fresh(self._nodes)
         self._lighting = Lighting()
         self._evidence: Evidence | None = None
+        self._unconfirmed = False
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -282,6 +283,16 @@ class Tracker:
         (``python -m bench.tracking.confidence``).  Not part of :meth:`to_state`.
         """
         return self._evidence
+
+    @property
+    def unconfirmed(self) -> bool:
+        """Whether the last frame was on probation after a re-acquisition that jumped: its
+        confidence is then at most just below
+        :data:`engine.tracking.confidence.TRACKING_FROM`, whatever :attr:`evidence` says.
+        For analysis, as :attr:`evidence` (the confidence benchmark leaves these frames out
+        of choosing the threshold).  Not part of :meth:`to_state`.
+        """
+        return self._unconfirmed
 
     @property
     def started(self) -> bool:
@@ -389,7 +400,7 @@ class Tracker:
         textured: bool = False,
     ) -> TrackResult:
         self.frame_index += 1
-        self._evidence = None
+        self._evidence, self._unconfirmed = None, False
         if min(grey.shape) < MIN_SIDE:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
@@ -452,6 +463,7 @@ class Tracker:
             memory.probation -= 1
             if memory.jumped:  # on probation: just below tracking
                 confidence = min(confidence, UNCONFIRMED)
+                self._unconfirmed = True
         elif attempt.score >= SEARCH_BELOW:
             if memory.misses >= AFRESH_AFTER:  # back after an absence: occluders forgotten
                 self.cues.start(image, nodes, self.appearance)

@@ -225,9 +225,15 @@ def test_only_a_reacquisition_that_jumped_is_on_probation(
     # the disc jumped 150 px: re-acquired at frame 6, on probation for it and the next two
     frames = jumping()
     tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
-    statuses = [tracker.step(frame).status for frame, _ in frames]
+    statuses, capped = [], []
+    for frame, _ in frames:
+        statuses.append(tracker.step(frame).status)
+        capped.append(tracker.unconfirmed)
     assert statuses[6:9] == ["uncertain"] * 3
     assert statuses[9] == "tracking"
+    # the tracker says which frames were capped for it, whatever their evidence
+    assert capped == [i in (6, 7, 8) for i in range(len(frames))]
+    assert not Tracker.from_state(tracker.to_state()).unconfirmed
     # the same re-acquisitions taken as corrections in place: reported as they score
     monkeypatch.setattr("engine.tracking.tracker.jumped", lambda local, found: False)
     tracker = Tracker(circle_nodes((90.0, 120.0), R, 128))
