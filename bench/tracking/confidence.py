@@ -80,6 +80,7 @@ def _sequence(job: tuple[str, str, str, int, bool]) -> dict[str, Any]:
 
     cv2.setNumThreads(1)
     from bench.common.data import load_davis
+    from bench.tracking.sets import grey_frame
     from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
     from engine.tracking import Tracker
 
@@ -88,9 +89,7 @@ def _sequence(job: tuple[str, str, str, int, bool]) -> dict[str, Any]:
     rows: list[list[float]] = []
     last = len(clip.frames) - 1
     for i, (frame, mask) in enumerate(zip(clip.frames, clip.masks, strict=True)):
-        if grey:
-            frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), np.uint8)
-        result = tracker.step(frame)
+        result = tracker.step(grey_frame(frame) if grey else frame)
         e = tracker.evidence
         if i in (0, last):
             continue

@@ -78,12 +78,12 @@ class ClipSpec:
             h, w = clip.frames[0].shape[:2]
             clip = resized(clip, (round(h * self.resize), round(w * self.resize)))
         if self.grey:
-            frames = tuple(_grey(f) for f in clip.frames)
+            frames = tuple(grey_frame(f) for f in clip.frames)
             clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
         return clip
 
 
-def _grey(frame: Frame) -> Frame:
+def grey_frame(frame: Frame) -> Frame:
     """A BGR frame in grey (H x W), as OpenCV converts it."""
     return np.asarray(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), np.uint8)
 

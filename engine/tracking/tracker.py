@@ -397,7 +397,7 @@ class Tracker:
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
         crowd: Crowd,
-        textured: bool = False,
+        textured: bool,
     ) -> TrackResult:
         self.frame_index += 1
         self._evidence, self._unconfirmed = None, False
