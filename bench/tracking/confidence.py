@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
+from scipy.special import logit
 
 from bench.common.data import davis_names
 from bench.common.study import on_two_processes, study_main
@@ -272,16 +273,12 @@ def run(sets: dict[str, Path], quick: bool, grey: bool = False) -> dict[str, Any
                 "fitted": [round(float(w), 4) for w in fitted],
                 "fitted_threshold": threshold,
                 "bias_at_tracking_from": round(
-                    float(fitted[0] + _logit(TRACKING_FROM) - _logit(threshold)), 4
+                    float(fitted[0] + logit(TRACKING_FROM) - logit(threshold)), 4
                 ),
             }
         out[label] = figures
     out["shipped_model"] = {"coefficients": list(model), "tracking_from": TRACKING_FROM}
     return out
-
-
-def _logit(p: float) -> float:
-    return math.log(p / (1.0 - p))
 
 
 def _cells(d: dict[str, Any]) -> str:

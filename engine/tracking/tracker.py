@@ -497,7 +497,7 @@ class Tracker:
         outline: NDArray[np.float64] | None = None,
         marks: NDArray[np.float64] | None = None,
         *,
-        textured: bool = False,
+        textured: bool,
     ) -> _Attempt:
         """Cue maps, refinement and cut around ``prediction``; the confidence of the result.
 
