@@ -24,6 +24,7 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Hashable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ from engine.tracking._processes import (
 from engine.tracking.confidence import Status
 from engine.tracking.covering import Order, Silhouette, fronts
 from engine.tracking.lighting import Lighting
+from engine.tracking.options import TrackerOptions
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
@@ -54,6 +56,8 @@ __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
 KIND = "objects"
 MAX_OBJECTS = 32
 """Objects one tracker follows at most by default (a frame's cost grows with each)."""
+_OPTION_NAMES = frozenset(f.name for f in dataclasses.fields(TrackerOptions))
+"""The options a state keeps: :class:`TrackerOptions` fields (not stages given as objects)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -342,13 +346,16 @@ class ObjectsTracker:
         return covered
 
     def to_state(self, **kwargs: Any) -> dict[str, Any]:
-        """``{"kind": "objects", "max_objects", "objects": [[id, state], ...], "in_front":
-        [[front id, back id], ...]}``, JSON-able for JSON-able ids (``kwargs`` as
-        :meth:`Tracker.to_state`'s)."""
+        """``{"kind": "objects", "max_objects", "options", "objects": [[id, state], ...],
+        "in_front": [[front id, back id], ...]}``, JSON-able for JSON-able ids (``kwargs`` as
+        :meth:`Tracker.to_state`'s).  ``options`` are the :class:`TrackerOptions` fields
+        given (stages passed as objects are not kept): objects added after a resume are
+        tracked with them, and they decide what is measured once for all objects."""
         pairs = [[front, next(iter(pair - {front}))] for pair, front in self._order.items()]
         return {
             "kind": KIND,
             "max_objects": self.max_objects,
+            "options": {k: v for k, v in self.options.items() if k in _OPTION_NAMES},
             "objects": [[key, t.to_state(**kwargs)] for key, t in self.trackers.items()],
             "in_front": pairs,
         }
@@ -363,11 +370,19 @@ class ObjectsTracker:
         entries = state.get("objects")
         if not isinstance(entries, list):
             raise ValueError("an objects tracker state needs a list of objects")
+        options = state.get("options", {})  # states written before it was kept: none
+        if not isinstance(options, Mapping) or not all(isinstance(k, str) for k in options):
+            raise ValueError("an objects tracker state's options must be a dict of option names")
+        try:  # checked here, before any object is rebuilt
+            TrackerOptions.from_mapping(options)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"an objects tracker state's options: {exc}") from None
         frames: list[NDArray[np.uint8] | None] = []
         restored = cls(
             max_objects=int(state.get("max_objects", MAX_OBJECTS)),
             workers=workers,
             processes=processes,
+            **options,
         )
         for entry in entries:
             if not isinstance(entry, list | tuple) or len(entry) != 2:

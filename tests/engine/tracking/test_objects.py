@@ -152,6 +152,46 @@ def test_an_objects_state_resumes_exactly() -> None:
                 np.testing.assert_array_equal(cx, cy)
 
 
+def test_an_objects_state_keeps_the_options_for_the_objects_added_after_it() -> None:
+    import json
+
+    options = {"cut_band": 4, "lighting": False}
+    tracker = ObjectsTracker({1: mask_to_contour(CROWD.masks[0][0], 48)}, **options)
+    for frame in CROWD.frames[:2]:
+        tracker.step(frame)
+    resumed = ObjectsTracker.from_state(json.loads(json.dumps(tracker.to_state())))
+    assert resumed.options == options
+    outline = circle_nodes((300, 300), 20, 32)
+    for t in (tracker, resumed):
+        t.add(2, outline)
+    added = resumed.trackers[2]
+    assert isinstance(added, Tracker)
+    assert added.options.cut_band == 4
+    assert added.options.lighting is False
+    for frame in CROWD.frames[2:4]:
+        for x, y in zip(tracker.step(frame), resumed.step(frame), strict=True):
+            for cx, cy in zip(x.contours, y.contours, strict=True):
+                np.testing.assert_array_equal(cx, cy)
+
+
+def test_an_objects_state_from_before_the_options_were_kept_resumes_on_the_defaults() -> None:
+    tracker = ObjectsTracker({1: mask_to_contour(CROWD.masks[0][0], 48)})
+    tracker.step(CROWD.frames[0])
+    state = tracker.to_state()
+    del state["options"]
+    assert ObjectsTracker.from_state(state).options == {}
+
+
+@pytest.mark.parametrize(
+    "options", [["cut_band"], {"cut_band": -1}, {"no_such_option": 1}, {1: True}]
+)
+def test_an_objects_state_with_bad_options_is_refused(options: object) -> None:
+    state = ObjectsTracker().to_state()
+    state["options"] = options
+    with pytest.raises(ValueError, match="option"):
+        ObjectsTracker.from_state(state)
+
+
 @pytest.mark.parametrize(
     "state",
     [
