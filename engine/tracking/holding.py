@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import nearest
 
-__all__ = ["DEPTH", "carry", "hold_factors", "side_contrast"]
+__all__ = ["DEPTH", "carry", "carry_by_shape", "hold_factors", "side_contrast"]
 
 DEPTH = 6
 """Pixels sampled on each side of a node: beyond the contour's own mixed
@@ -67,3 +67,12 @@ def carry(
         return values.copy()
     moved: NDArray[np.float64] = values[nearest(target, source)]
     return moved
+
+
+def carry_by_shape(
+    values: NDArray[np.float64], source: NDArray[np.float64], target: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """:func:`carry` from ``source`` to a ``target`` found elsewhere in the frame (a
+    re-acquired contour): nodes matched by their place on the shape, both contours taken
+    about their own centres."""
+    return carry(values, source - source.mean(axis=0), target - target.mean(axis=0))

@@ -57,7 +57,7 @@ from engine.tracking.confidence import (
 )
 from engine.tracking.covering import cover_maps, covered_share
 from engine.tracking.cues import RegionEdgeCues
-from engine.tracking.holding import carry, hold_factors, side_contrast
+from engine.tracking.holding import carry, carry_by_shape, hold_factors, side_contrast
 from engine.tracking.lighting import Lighting
 from engine.tracking.maps import roi_box
 from engine.tracking.memory import Memory
@@ -444,7 +444,7 @@ class Tracker:
             memory.misses += int(lost)
             retry = self._search(image, grey, prediction)
             if retry is not None:
-                moved = carry(hold, self._nodes - self._nodes.mean(axis=0), retry.nodes)
+                moved = carry_by_shape(hold, self._nodes, retry.nodes)
                 other = self._attempt(image, grey, retry, cues, moved, crowd, textured=textured)
                 margin = attempt.score + REACQUIRE_MARGIN
                 if other.score >= self.options.reacquire_above and other.score > margin:

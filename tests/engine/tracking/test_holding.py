@@ -8,7 +8,7 @@ import pytest
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, mask_to_contour
 from engine.testing.synthetic import make_sequence
 from engine.tracking import Tracker
-from engine.tracking.holding import carry, hold_factors, side_contrast
+from engine.tracking.holding import carry, carry_by_shape, hold_factors, side_contrast
 
 
 def test_side_contrast_sees_a_step_and_no_step() -> None:
@@ -39,6 +39,14 @@ def test_carry_follows_the_nodes_whatever_their_order() -> None:
     carried = carry(values, source, target)
     np.testing.assert_allclose(carried, np.roll(values[::-1], 5))
     assert carry(values, source[:8], target).tolist() == [0.0] * 16  # mismatched: nothing known
+
+
+def test_a_hold_pattern_goes_with_a_contour_found_elsewhere() -> None:
+    source = circle_nodes((100.0, 80.0), 30.0, 64)
+    held = np.zeros(64)
+    held[:16] = 1.0  # a quarter of the contour held
+    found = np.roll(source, 3, axis=0) + np.array([250.0, -40.0])  # re-acquired far away
+    np.testing.assert_array_equal(carry_by_shape(held, source, found), np.roll(held, 3))
 
 
 @pytest.mark.parametrize("seed", [0, 1])
