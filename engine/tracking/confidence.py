@@ -329,7 +329,8 @@ def evidence(
     Returns
     -------
     Evidence
-        p = 0.5 (nothing known) for a part that falls outside the maps.
+        p = 0.5 (nothing known) inside and outside when either side falls wholly outside
+        the maps.
     """
     h, w = maps.probability.shape
     mask = contour_to_mask(nodes - np.asarray(maps.origin, dtype=np.float64), (h, w))
@@ -338,8 +339,10 @@ def evidence(
     ring = outer & (mask == 0)
     found_in, found_out = bool(inner.any()), bool(ring.any())
     p = maps.seen  # an occluder counts: the object is not seen there
-    inside = float(p[inner].mean()) if found_in else 0.5
-    outside = float(p[ring].mean()) if found_out else 0.5
+    # a side not in the maps (a contour around all of them): nothing tells it from the other
+    both = found_in and found_out
+    inside = float(p[inner].mean()) if both else 0.5
+    outside = float(p[ring].mean()) if both else 0.5
     shape = 1.0 if outline is None else shape_overlap(nodes, outline)
     if maps.motion is None or not (found_in and found_out):
         return Evidence(inside, outside, settled, shape=shape)

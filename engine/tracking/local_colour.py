@@ -32,6 +32,11 @@ __all__ = ["WINDOWS", "LocalColour"]
 WINDOWS = 32
 """Windows along the contour: a 128-node contour gets one every four nodes,
 dense enough that neighbouring windows overlap by a third."""
+MAX_HALF = 512
+"""Largest half side (pixels) of a window: the window of a contour far larger than any
+frame (a user's outline of 10^6 pixels) is capped at a frame's size, instead of a
+Gaussian table of (2 half + 1)^2 weights that does not fit in memory.  A 128-node contour
+on 480-line video has windows of half side 12-70."""
 MIN_HALF = 12
 """Smallest half side (pixels) of a window: 25 x 25 pixels, a few hundred of
 each side's pixels, enough for a 512-bin histogram to say something."""
@@ -56,8 +61,9 @@ def bin_count(image: NDArray[np.uint8]) -> int:
 
 
 def window_half(nodes: NDArray[np.float64]) -> int:
-    """Half side (pixels) of the windows for a contour: :data:`OVERLAP` of its length per window."""
-    return max(MIN_HALF, round(OVERLAP * perimeter(nodes) / WINDOWS))
+    """Half side (pixels) of the windows for a contour: :data:`OVERLAP` of its length per window
+    (within :data:`MIN_HALF` and :data:`MAX_HALF`)."""
+    return min(MAX_HALF, max(MIN_HALF, round(OVERLAP * perimeter(nodes) / WINDOWS)))
 
 
 def window_nodes(count: int) -> NDArray[np.int64]:
@@ -176,7 +182,7 @@ class LocalColour:
     def from_state(cls, state: Mapping[str, Any]) -> LocalColour:
         """Inverse of :meth:`to_state`; ValueError on anything malformed."""
         half, nodes = int(state["half"]), int(state["nodes"])
-        if not 1 <= half <= 1 << 16 or nodes < 3:
+        if not 1 <= half <= MAX_HALF or nodes < 3:
             raise ValueError("local colour windows: bad window size or node count")
         sizes = (1 << GREY_BITS, 1 << (3 * COLOUR_BITS))
         fg = unpack_counts(state["object"], WINDOWS, sizes)

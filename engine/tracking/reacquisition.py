@@ -149,6 +149,10 @@ def search_shape(
     ys, xs = np.mgrid[0 : score.shape[0], 0 : score.shape[1]]
     far = ((xs - cx) ** 2 + (ys - cy) ** 2) / max((f * size) ** 2, 1.0)
     best = np.unravel_index(int(np.argmax(score - DISTANCE_PENALTY * far)), score.shape)
+    # at half resolution the template is drawn without the half pixel of cv2.resize's
+    # centres (frame p is (p + 1/2) f - 1/2), so a match lands 0.5 px up and left; the
+    # refinement that follows absorbs it, and corrected the thirty training sequences
+    # scored 0.742 against 0.749 over five node counts (docs/tracking-log.md, 2026-11-29)
     shift = np.array([best[1] - cx, best[0] - cy], dtype=np.float64) / f
     result: NDArray[np.float64] = placed + shift
     return result

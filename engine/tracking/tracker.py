@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from engine.geometry import as_nodes, resample
+from engine.geometry import as_nodes, polygon_area, resample
 from engine.tracking._frames import as_frame as _as_frame
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._tracker_state import restore, snapshot
@@ -86,6 +86,9 @@ __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
 MIN_SIDE = 16
 """Frames smaller than this (pixels) carry no trackable information."""
+MIN_AREA = 1.0
+"""Square pixels a contour must enclose: less (nodes on a line, a circle of radius 0.01)
+has no inside to tell from its surroundings, and could only ever be reported on nothing."""
 MOTION_SHARE = 0.4
 """Share of the motion's support in the learning signal; the rest is the
 boundary evidence, which says more: a contour on the object's edges is right
@@ -98,9 +101,10 @@ REACQUIRE_MARGIN = 0.05
 of two near-equal readings, the one that did not jump wins."""
 PROBATION = 2
 """A re-acquired contour that jumped (:func:`engine.tracking.reacquisition.jumped`) is
-reported ``uncertain`` for its first 2 frames: a jump is right only if the object is then
-followed from there.  One that corrects the local contour in place is reported as its
-confidence says; either way these frames do not become the remembered shape."""
+reported ``uncertain`` on the frame it jumps on and the 2 after it: a jump is right only
+if the object is then followed from there.  One that corrects the local contour in place
+is reported as its confidence says; either way these frames do not become the remembered
+shape."""
 SEARCH_UNLESS_COVERED = 0.2
 """An object at least this much hidden by other tracked objects in front is not searched
 for elsewhere: its low score is theirs, and it is known to be behind them."""
@@ -243,6 +247,11 @@ class Tracker:
         out = resample(arr, len(arr))
         if np.ptp(out, axis=0).max() <= 0:
             raise ValueError("the contour has zero length (all nodes coincide)")
+        if abs(polygon_area(out)) < MIN_AREA:
+            raise ValueError(
+                f"the contour encloses no area (under {MIN_AREA:g} square pixel: its nodes lie "
+                "on a line or within a pixel)"
+            )
         return out
 
     @property
@@ -434,7 +443,7 @@ class Tracker:
         attempt = self._attempt(
             image, grey, prediction, self.cues, hold, crowd, outline, marks, textured=textured
         )
-        visible = self._visible(grey)
+        visible = self._visible(self._nodes, grey)  # where the object was: worth a search
         share = covered_share(crowd.covered, prediction.nodes)
         lost = attempt.score < SEARCH_BELOW
         # back after an absence, the local contour is where it drifted while there was
@@ -472,7 +481,7 @@ class Tracker:
             memory.shape = nodes
         support = MOTION_SHARE * prediction.support
         signal = support + (1 - MOTION_SHARE) * refinement.contrast
-        if not visible:
+        if not self._visible(nodes, grey):  # the contour reported: none of it in view
             signal = confidence = 0.0
         else:  # how the object usually looks, from the track's first frames
             memory.learn_usual(attempt.evidence.inside, attempt.evidence.outside)
@@ -589,7 +598,7 @@ class Tracker:
             self._memory.outline = self._nodes.copy()
             if self.options.turn_outline:  # the marks ride on the outline
                 self._memory.marks = self._memory.hold.copy()
-        return self._result(0, True, 1.0 if self._visible(grey) else 0.0)
+        return self._result(0, True, 1.0 if self._visible(self._nodes, grey) else 0.0)
 
     def _forget_search(self) -> None:
         """No frames missed; the current contour is the shape to look for."""
@@ -599,10 +608,13 @@ class Tracker:
         status = status_of(confidence)
         return TrackResult(self._in_frame(self._nodes), iterations, converged, confidence, status)
 
-    def _visible(self, grey: NDArray[np.uint8]) -> bool:
+    @staticmethod
+    def _visible(nodes: NDArray[np.float64], grey: NDArray[np.uint8]) -> bool:
+        """Whether a node of ``nodes`` lies in the frame: a contour with none in it (beside
+        the frame, or around all of it) shows none of its boundary."""
         h, w = grey.shape
-        lo, hi = self._nodes.min(axis=0), self._nodes.max(axis=0)
-        return bool(hi[0] >= 0 and hi[1] >= 0 and lo[0] < w and lo[1] < h)
+        x, y = nodes[:, 0], nodes[:, 1]
+        return bool(np.any((x >= 0) & (y >= 0) & (x < w) & (y < h)))
 
     # --- serialisation -------------------------------------------------------------
 

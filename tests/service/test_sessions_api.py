@@ -136,6 +136,42 @@ def test_a_circle_reaching_beyond_the_coordinate_limit_is_a_422(client: TestClie
     assert "within" in response.text
 
 
+@pytest.mark.parametrize(
+    ("spec", "around"),
+    [
+        ({"circle": {"center": [160, 120], "radius": 1e6}}, True),
+        ({"box": [-1e8, -1e8, 1e8, 1e8], "snap": False}, True),
+        ({"nodes": [[0, 0], [1e7, 0], [1e7, 1e7]]}, False),  # a corner and a side in view
+    ],
+    ids=["radius 1e6", "box 1e8", "triangle 1e7"],
+)
+def test_a_contour_far_larger_than_the_frames_is_tracked_not_a_500(
+    client: TestClient, spec: dict[str, Any], around: bool
+) -> None:
+    """Found by an audit: its colour windows once asked for more memory than there is, a 500
+    on every frame of the session.  One around the whole frame shows none of its boundary:
+    ``lost``."""
+    sid = create(client, spec)["id"]
+    for cx in (160, 163, 166):
+        response = post_frame(client, sid, disc_frame(cx, 120))
+        assert response.status_code == 200, response.text
+        if around:
+            assert response.json()["status"] == "lost"
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [
+        {"nodes": [[100, 200], [300, 200], [500, 200]]},
+        {"circle": {"center": [160, 120], "radius": 0.01}},
+    ],
+    ids=["on a line", "within a pixel"],
+)
+def test_a_contour_enclosing_no_area_is_a_422(client: TestClient, spec: dict[str, Any]) -> None:
+    error = error_of(client.post("/v1/sessions", json=spec), 422)
+    assert "no area" in error["message"]
+
+
 def test_session_ids_are_unguessable(client: TestClient) -> None:
     ids = [create(client)["id"] for _ in range(20)]
     assert len(set(ids)) == len(ids)

@@ -263,6 +263,29 @@ def test_contour_wholly_outside_the_frame(where: tuple[float, float], frames: li
         assert result.confidence == 0.0
 
 
+@pytest.mark.parametrize(
+    "nodes",
+    [
+        circle_nodes((W / 2, H / 2), 1e6, 64),
+        np.array([[-1e8, -1e8], [1e8, -1e8], [1e8, 1e8], [-1e8, 1e8]]),
+        circle_nodes((W / 2, H / 2), 2.0 * (W + H), 64),
+    ],
+    ids=["radius 1e6", "box 1e8", "just around the frame"],
+)
+def test_a_contour_around_the_whole_frame_is_tracked_as_unseen(
+    nodes: F64, frames: list[U8]
+) -> None:
+    """Its windows and maps stay within the frame's size (a radius of 10^6 once asked for
+    more memory than there is) and, with none of its boundary in view, it is never
+    reported on anything."""
+    tracker = Tracker(nodes)
+    for frame in frames[:3]:
+        result = tracker.step(frame)
+        check_result(result, len(nodes))
+        assert result.confidence == 0.0
+        assert result.status == "lost"
+
+
 CRASH_PROBE = """
 import sys
 import numpy as np
@@ -318,8 +341,21 @@ def test_short_wide_regions_do_not_crash_the_process(case: str) -> None:
         (np.where(np.arange(2 * N).reshape(N, 2) == 7, np.nan, initial()), "finite"),
         (np.where(np.arange(2 * N).reshape(N, 2) == 7, np.inf, initial()), "finite"),
         ("a circle", "nodes"),
+        (np.array([[100.0, 200.0], [300.0, 200.0], [500.0, 200.0]]), "no area"),
+        (circle_nodes((60.0, 40.0), 0.01, 64), "no area"),
     ],
-    ids=["identical", "two nodes", "3 columns", "1-D", "empty", "NaN", "inf", "text"],
+    ids=[
+        "identical",
+        "two nodes",
+        "3 columns",
+        "1-D",
+        "empty",
+        "NaN",
+        "inf",
+        "text",
+        "on a line",
+        "within a pixel",
+    ],
 )
 def test_bad_contours_are_rejected(nodes: Any, message: str) -> None:
     with pytest.raises(ValueError, match=message):
@@ -472,7 +508,7 @@ def small_frames(draw: st.DrawFn) -> list[U8]:
     sequence=small_frames(),
     x=st.floats(-20, 60),
     y=st.floats(-20, 60),
-    radius=st.floats(0.5, 30),
+    radius=st.floats(1.0, 30),  # a triangle of radius 1 encloses 1.3 px²; less is refused
     count=st.integers(3, 40),
 )
 def test_random_small_frames_never_break_the_tracker(
