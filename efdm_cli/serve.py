@@ -7,7 +7,7 @@ import signal
 from types import FrameType
 from typing import Any, NoReturn
 
-from efdm_cli._common import EXIT_MISSING, CliError
+from efdm_cli._common import EXIT_INVALID, EXIT_IO, EXIT_MISSING, CliError
 
 GRACE_SECONDS = 10
 """On SIGTERM, seconds for the work in flight before uvicorn cancels what is left."""
@@ -61,6 +61,7 @@ def run(args: argparse.Namespace, out: Any) -> None:
     """
     try:
         import uvicorn
+        from pydantic import ValidationError
         from uvicorn.config import STARTUP_FAILURE
 
         from service.app import create_app
@@ -76,7 +77,10 @@ def run(args: argparse.Namespace, out: Any) -> None:
         ) from None
 
     overrides = {k: v for k, v in {"host": args.host, "port": args.port}.items() if v is not None}
-    settings = Settings(**overrides)
+    try:
+        settings = Settings(**overrides)
+    except ValidationError as exc:
+        raise CliError(_invalid_settings(exc, set(overrides)), EXIT_INVALID) from None
     raise_open_file_limit()  # many clients, slow ones included, each hold a descriptor
     app = create_app(settings)
     config = uvicorn.Config(
@@ -94,15 +98,37 @@ def run(args: argparse.Namespace, out: Any) -> None:
     )
     # on the handlers uvicorn's Config has just set up
     redact_logs([*settings.api_keys, settings.metrics_key or ""])
-    print(banner(settings), file=out, flush=True)
-    server = GracefulServer(config, app.state.streams, drain_seconds=DRAIN_SECONDS)
+    server = GracefulServer(
+        config,
+        app.state.streams,
+        drain_seconds=DRAIN_SECONDS,
+        on_started=lambda: print(banner(settings), file=out, flush=True),  # once it listens
+    )
     previous = signal.signal(signal.SIGTERM, _terminated)
     stopped = False
     try:
         server.run()
     except (KeyboardInterrupt, _TerminatedError):
         stopped = True  # uvicorn re-raises the signal it stopped on: a requested stop succeeds
+    except SystemExit as exc:  # uvicorn's own exit when it cannot start
+        if server.started or exc.code != STARTUP_FAILURE:
+            raise
     finally:
         signal.signal(signal.SIGTERM, previous)
     if not server.started and not stopped:
-        raise SystemExit(STARTUP_FAILURE)  # as uvicorn.run: the lifespan start-up failed
+        raise CliError(
+            f"could not serve on {settings.host}:{settings.port} (the address is in use or "
+            "not this machine's, or the app failed to start: see the log above)",
+            EXIT_IO,
+        )
+
+
+def _invalid_settings(exc: Any, given: set[str]) -> str:
+    """A pydantic ``ValidationError`` of the settings as one line: each setting by the
+    environment variable (or option) it came from, and what is wrong with it."""
+    parts = []
+    for error in exc.errors():
+        name = str(error["loc"][0]) if error["loc"] else "settings"
+        where = f"--{name}" if name in given else f"EFDM_{name.upper()}"
+        parts.append(f"{where}: {error['msg']} (got {error.get('input')!r})")
+    return "invalid settings: " + "; ".join(parts)

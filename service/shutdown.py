@@ -28,7 +28,7 @@ import contextlib
 import logging
 import math
 import socket
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 
 import uvicorn
 from starlette.websockets import WebSocket, WebSocketDisconnect
@@ -180,14 +180,28 @@ class GracefulServer(uvicorn.Server):
         At most this long for frames in flight; a second Ctrl-C cuts it short.
         The time it takes comes off ``config.timeout_graceful_shutdown``, which
         so bounds the whole shutdown (the lifespan exit aside).
+    on_started : callable, optional
+        Called once the server listens (``efdm serve`` prints its address then).
     """
 
     def __init__(
-        self, config: uvicorn.Config, streams: StreamRegistry, *, drain_seconds: float = 5.0
+        self,
+        config: uvicorn.Config,
+        streams: StreamRegistry,
+        *,
+        drain_seconds: float = 5.0,
+        on_started: Callable[[], None] | None = None,
     ) -> None:
         super().__init__(config)
         self.streams = streams
         self.drain_seconds = drain_seconds
+        self.on_started = on_started
+
+    async def startup(self, sockets: list[socket.socket] | None = None) -> None:
+        """uvicorn's start-up; then ``on_started``, once the server listens."""
+        await super().startup(sockets=sockets)
+        if self.started and self.on_started is not None:
+            self.on_started()
 
     async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
         """Stop listening, close the streams gracefully, then uvicorn's shutdown."""
