@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from efdm_cli._common import EXIT_INVALID, CliError
 from engine.geometry import MIN_PIECE_AREA  # re-exported: the CLI's default
+from engine.tracking.tracker import MAX_NODES
 
 __all__ = [
     "MIN_PIECE_AREA",
@@ -228,8 +229,8 @@ def _initial(
     if len(given) != 1:
         got = "none" if not given else " and ".join(given)
         raise CliError(f"give exactly one of {', '.join(_INIT_OPTIONS)} (got {got})", EXIT_INVALID)
-    if args.nodes < 3:
-        raise CliError(f"--nodes must be at least 3; got {args.nodes}", EXIT_INVALID)
+    if not 3 <= args.nodes <= MAX_NODES:
+        raise CliError(f"--nodes must be in [3, {MAX_NODES}]; got {args.nodes}", EXIT_INVALID)
     if getattr(args, "label", None) is not None and args.init_mask is None:
         raise CliError("--label chooses an object of --init-mask: give --init-mask", EXIT_INVALID)
     width, height = size

@@ -11,7 +11,7 @@ that ``--init-mask`` gives in several pieces).
 Exit codes: 0 success; 1 an input or output could not be read or written
 (missing file, unreadable video, empty folder, undecodable image, overlay
 video that cannot be opened); 2 invalid arguments or data (not exactly one
-``--init-*`` option, malformed box, polygon or circle, ``--nodes`` < 3, empty mask,
+``--init-*`` option, malformed box, polygon or circle, ``--nodes`` outside 3-4096, empty mask,
 initial contour outside the first frame, frame size changing mid-stream,
 tracker options the tracker rejects).
 """
@@ -338,7 +338,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=int,
         default=128,
         metavar="N",
-        help="contour nodes, >= 3 (default: 128)",
+        help="contour nodes, 3 to 4096 (default: 128)",
     )
     t.add_argument(
         "--stiffness", "-a", type=float, metavar="A", help="a = k/m > 0 (default: the tracker's)"

@@ -8,6 +8,8 @@ from typing import Annotated
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
+from engine.tracking.tracker import MAX_NODES
+
 
 class Settings(BaseSettings):
     """Configuration of ``efdm serve`` (e.g. ``EFDM_PORT=9000``, ``EFDM_API_KEYS=a,b``)."""
@@ -18,7 +20,7 @@ class Settings(BaseSettings):
     port: int = Field(8000, ge=0, le=65535)
     session_ttl_seconds: float = Field(900.0, gt=0, description="idle sessions expire")
     max_sessions: int = Field(1000, ge=1)
-    max_nodes: int = Field(4096, ge=3)
+    max_nodes: int = Field(MAX_NODES, ge=3, le=MAX_NODES, description="nodes of a contour")
     max_frame_bytes: int = Field(8 * 1024 * 1024, ge=1024, description="encoded image size")
     max_frame_pixels: int = Field(4096 * 2160, ge=64, description="decoded width x height")
     max_json_bytes: int = Field(2 * 1024 * 1024, ge=1024, description="JSON request bodies")

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from engine.geometry import as_nodes
+from engine.geometry import as_nodes, circle_nodes
 from engine.tracking._state_codec import from_version_1 as _from_version_1
 from engine.tracking._state_codec import (
     pack_compact_frame,
@@ -41,6 +41,9 @@ STATE_VERSION = 3
 under ``"stages"``) and version 1 (the colour model, probability and corners
 at the top level) are still read, the segmentation learning afresh."""
 STAGES = ("motion", "appearance", "cues", "segmentation")
+STAND_IN_RADIUS = 10.0
+"""Radius (pixels) of the circle a tracker is rebuilt on before its state's own contour is
+set: any contour the constructor accepts would do."""
 COMPACT_BYTES = 52 * 1024
 """JSON size a compact state aims at (the previous frame's detail gets what the rest
 leaves): the service's Redis record adds about 9 kB for a 128-node session (its
@@ -126,8 +129,12 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("turn_outline", False)  # and before the outline turned
         options.setdefault("working_side", 0)  # and before the working resolution
         options.setdefault("grey_texture", False)  # and before grey frames' texture
-        tracker = make(state["nodes"], **options)
-        tracker._nodes = as_nodes(state["nodes"])  # exactly, not resampled again
+        nodes = as_nodes(state["nodes"])
+        # built on a stand-in of as many nodes: a tracked contour may have shrunk below what
+        # a new one may enclose; it is then set exactly, not resampled again
+        tracker = make(circle_nodes((0.0, 0.0), STAND_IN_RADIUS, len(nodes)), **options)
+        tracker._nodes = nodes
+        tracker._memory = Memory.fresh(nodes)  # as the state's "search" says, if it has one
         tracker.frame_index = int(state["frame_index"])
         stages, previous = state.get("stages"), state.get("previous")
         if stages is not None and previous is not None:

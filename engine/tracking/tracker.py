@@ -86,6 +86,11 @@ __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
 MIN_SIDE = 16
 """Frames smaller than this (pixels) carry no trackable information."""
+MAX_NODES = 4096
+"""Most nodes a contour may have: more than one per boundary pixel of any object on the
+480-line working grid (whose longest outline is about 3,000 pixels), and within what
+the node-to-node searches (N x N distances) and OpenCV's sampling of the nodes as one
+row of a map (under 32,767) can take."""
 MIN_AREA = 1.0
 """Square pixels a contour must enclose: less (nodes on a line, a circle of radius 0.01)
 has no inside to tell from its surroundings, and could only ever be reported on nothing."""
@@ -244,6 +249,8 @@ class Tracker:
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
         arr = as_nodes(nodes)
+        if len(arr) > MAX_NODES:
+            raise ValueError(f"a contour has at most {MAX_NODES} nodes; got {len(arr)}")
         out = resample(arr, len(arr))
         if np.ptp(out, axis=0).max() <= 0:
             raise ValueError("the contour has zero length (all nodes coincide)")

@@ -85,6 +85,19 @@ def test_state_round_trip_continues_identically(
     assert restored.frame_index == 9
 
 
+def test_a_contour_shrunk_below_a_pixel_resumes(frames: list[U8]) -> None:
+    """A new contour must enclose a square pixel; a tracked one that shrank below it (on tiny
+    random frames, found by the property test) still resumes, exactly."""
+    tracker = Tracker(initial())
+    run(tracker, frames[:2])
+    state = through_json(tracker.to_state())
+    tiny = circle_nodes((40.0, 30.0), 0.2, len(state["nodes"]))
+    state["nodes"] = tiny.tolist()
+    restored = Tracker.from_state(state)
+    np.testing.assert_array_equal(restored.nodes, tiny)
+    check_result(restored.step(frames[2]), len(tiny))
+
+
 def test_state_before_any_frame(frames: list[U8]) -> None:
     tracker = Tracker(initial(), iterations=3)
     restored = Tracker.from_state(through_json(tracker.to_state()))

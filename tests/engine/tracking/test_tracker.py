@@ -343,6 +343,7 @@ def test_short_wide_regions_do_not_crash_the_process(case: str) -> None:
         ("a circle", "nodes"),
         (np.array([[100.0, 200.0], [300.0, 200.0], [500.0, 200.0]]), "no area"),
         (circle_nodes((60.0, 40.0), 0.01, 64), "no area"),
+        (circle_nodes((60.0, 40.0), 30.0, 4097), "at most 4096 nodes"),
     ],
     ids=[
         "identical",
@@ -355,6 +356,7 @@ def test_short_wide_regions_do_not_crash_the_process(case: str) -> None:
         "text",
         "on a line",
         "within a pixel",
+        "too many nodes",
     ],
 )
 def test_bad_contours_are_rejected(nodes: Any, message: str) -> None:
