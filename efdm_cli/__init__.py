@@ -36,7 +36,14 @@ from efdm_cli import deform as _deform
 from efdm_cli import evaluate as _evaluate
 from efdm_cli import serve as _serve
 from efdm_cli import track as _track
-from efdm_cli._common import EXIT_INVALID, EXIT_IO, EXIT_MISSING, EXIT_OK, CliError
+from efdm_cli._common import (
+    EXIT_INVALID,
+    EXIT_IO,
+    EXIT_MISSING,
+    EXIT_OK,
+    CliError,
+    silence,
+)
 
 __all__ = [
     "EXIT_INVALID",
@@ -71,4 +78,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CliError as exc:
         print(f"efdm {args.command}: error: {exc}", file=sys.stderr)
         return exc.code
+    except BrokenPipeError:  # stdout's reader (e.g. `head`) has had enough: stop quietly
+        silence(sys.stdout)
     return EXIT_OK

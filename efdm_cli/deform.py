@@ -22,6 +22,8 @@ def _read_json(source: str) -> Any:
         text = sys.stdin.read() if source == "-" else Path(source).read_text()
     except OSError as exc:
         raise CliError(f"cannot read {source}: {exc.strerror}", EXIT_IO) from None
+    except UnicodeDecodeError:
+        raise CliError(f"{source} is not valid JSON: not UTF-8 text", EXIT_INVALID) from None
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:

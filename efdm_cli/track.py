@@ -19,9 +19,7 @@ tracker options the tracker rejects).
 from __future__ import annotations
 
 import argparse
-import io
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -30,7 +28,7 @@ from typing import Any, Protocol, TextIO
 import numpy as np
 from numpy.typing import NDArray
 
-from efdm_cli._common import EXIT_INVALID, EXIT_IO, CliError
+from efdm_cli._common import EXIT_INVALID, EXIT_IO, CliError, silence
 from efdm_cli._init import (
     MIN_PIECE_AREA,
     initial_contour,
@@ -142,16 +140,6 @@ def summary(confidences: list[float], statuses: list[str], seconds: float) -> st
     )
 
 
-def _silence(stream: TextIO) -> None:
-    """Point ``stream``'s file descriptor at /dev/null, so that flushing it at exit is quiet."""
-    try:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, stream.fileno())
-        os.close(devnull)
-    except (OSError, ValueError, io.UnsupportedOperation):
-        pass
-
-
 def run(args: argparse.Namespace, out: TextIO) -> None:
     """Track the contour through ``args.input``; JSON Lines to ``out`` or ``args.out``.
 
@@ -234,7 +222,7 @@ def run(args: argparse.Namespace, out: TextIO) -> None:
             except BrokenPipeError:
                 if sink is not out:
                     raise CliError(f"cannot write {args.out}: broken pipe", EXIT_IO) from None
-                _silence(out)  # the reader (e.g. `head`) has had enough: stop quietly
+                silence(out)  # the reader (e.g. `head`) has had enough: stop quietly
                 return
             except OSError as exc:
                 target = args.out or "stdout"

@@ -74,6 +74,33 @@ def test_deform_invalid_input(
     assert message in capsys.readouterr().err
 
 
+def test_a_file_that_is_not_text_is_invalid_json(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = tmp_path / "clip.mp4"
+    src.write_bytes(b"\xff\xfe\x00\x00ftypmp42")
+    assert main(["deform", str(src), "-a", "1"]) == EXIT_INVALID
+    assert "not valid JSON: not UTF-8 text" in capsys.readouterr().err
+
+
+def test_a_reader_that_stops_early_ends_the_output_quietly(tmp_path: Path) -> None:
+    """``efdm deform big.json | head -c 50``: a closed pipe is no error and no traceback."""
+    src = tmp_path / "big.json"
+    src.write_text(json.dumps({"forces": [[1.0, 0.0]] * 20_000}))
+    with subprocess.Popen(
+        [sys.executable, "-m", "efdm_cli", "deform", str(src), "-a", "10"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    ) as proc:
+        assert proc.stdout is not None
+        assert proc.stderr is not None
+        assert proc.stdout.read(50).startswith(b'{"displacements": ')
+        proc.stdout.close()
+        err = proc.stderr.read().decode()
+        assert proc.wait(timeout=60) == 0, err
+    assert "Traceback" not in err
+
+
 def test_missing_file_is_an_io_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["deform", str(tmp_path / "nope.json"), "-a", "1"]) == EXIT_IO
     assert "cannot read" in capsys.readouterr().err
