@@ -209,6 +209,8 @@ class Session:
             self._snap(frame)
         elif self.snap_outline is not None:
             self._snap_again(frame)
+        # frames were tracked, and the tracker waits for a first one: forces moved the contour
+        restarted = self.frame_index >= 0 and not self.tracker.started
         # near the coordinate limit a step could carry the contour past it: keep a way back
         undo = self.tracker.to_state() if np.abs(self.nodes).max() > LIMIT - NEAR_LIMIT else None
         try:
@@ -228,6 +230,8 @@ class Session:
                 f"frame size changed from {w0}{TIMES}{h0} to {w}{TIMES}{h}: "
                 "tracking restarted from the current contour"
             )
+        elif restarted:
+            reset = "the contour was moved by forces: tracking restarted from it on this frame"
         self.frame_size = size
         self.frame_index += 1
         self.nodes = result.nodes

@@ -293,6 +293,19 @@ def test_forces_act_on_the_rest_shape_not_cumulatively(client: TestClient) -> No
     assert second["version"] == 3
 
 
+def test_the_frame_after_forces_says_tracking_restarted(client: TestClient) -> None:
+    sid = create(client)["id"]
+    for cx in (160, 162):
+        assert post_frame(client, sid, disc_frame(cx, 120)).json()["reset"] is None
+    push = [[2.0, 0.0]] * 64
+    assert client.post(f"/v1/sessions/{sid}/forces", json={"forces": push}).status_code == 200
+    after = post_frame(client, sid, disc_frame(164, 120)).json()
+    assert after["reset"] == (
+        "the contour was moved by forces: tracking restarted from it on this frame"
+    )
+    assert post_frame(client, sid, disc_frame(166, 120)).json()["reset"] is None
+
+
 @pytest.mark.parametrize(
     "forces",
     [
