@@ -93,6 +93,24 @@ def test_downscale_halves_exactly_then_interpolates() -> None:
     assert (downscale(flat, (853, 480)) == 77).all()
 
 
+@pytest.mark.parametrize("shape", [(1080, 1920), (1079, 1919), (1081, 1921), (721, 1281)])
+def test_a_blob_lands_where_its_points_map_on_even_and_odd_frames(
+    shape: tuple[int, int],
+) -> None:
+    """Found by a review: an odd side halved lost its last line and, with it, about a frame
+    pixel at the far corner (0.44 working pixels)."""
+    scale = working_scale(shape, 480)
+    assert scale is not None
+    h, w = shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    for x, y in ((30.0, 30.0), (w - 40.0, h - 40.0)):
+        blob = (200 * np.exp(-((xs - x) ** 2 + (ys - y) ** 2) / 72.0)).astype(np.uint8)
+        small = scale.image(blob).astype(np.float64)
+        sy, sx = np.mgrid[0 : small.shape[0], 0 : small.shape[1]]
+        found = np.array([(small * sx).sum(), (small * sy).sum()]) / small.sum()
+        np.testing.assert_allclose(found, scale.to_working(np.array([[x, y]]))[0], atol=0.05)
+
+
 def test_a_mask_counts_working_pixels_at_least_half_covered() -> None:
     scale = working_scale((8, 8), 4)
     assert scale is not None
