@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 import numpy as np
@@ -238,6 +239,17 @@ def _initial(
     box = getattr(args, "init_box", None)
     if snapping is None:
         snapping = box is not None  # boxes snap by default, outlines only when asked
+    area = getattr(args, "min_piece_area", None)
+    if area is not None and not (math.isfinite(area) and area >= 0):
+        raise CliError(
+            f"--min-piece-area must be a number of pixels >= 0; got {area:g}", EXIT_INVALID
+        )
+    if area is not None and args.init_mask is None and not snapping:
+        raise CliError(
+            "--min-piece-area splits a mask or a snapped outline into pieces: give --init-mask, "
+            "or snap the outline (--snap)",
+            EXIT_INVALID,
+        )
     if args.init_circle is not None:
         cx, cy, r = parse_circle(args.init_circle)
         nodes = circle_nodes([cx, cy], r, args.nodes)

@@ -211,6 +211,8 @@ def _error(capsys: pytest.CaptureFixture[str], argv: list[str], code: int) -> st
         (["--init-polygon", "1,2 3,4 5"], '"x,y x,y ..."'),
         (["--init-polygon", "1,1 2,2 3,3"], "encloses no area"),
         (["--init-circle", CIRCLE, "--nodes", "2"], "--nodes must be in [3, 4096]"),
+        (["--init-box", "10,10,30,30", "--min-piece-area", "-5"], "--min-piece-area must be"),
+        (["--init-circle", CIRCLE, "--min-piece-area", "50"], "give --init-mask, or snap"),
         (["--init-circle", CIRCLE, "--nodes", "33000"], "--nodes must be in [3, 4096]"),
         (["--init-circle", CIRCLE, "--nodes", "100000000"], "--nodes must be in [3, 4096]"),
         (["--init-circle", "500,60,10"], "initial contour lies outside the frame (160 x 120)"),
