@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -155,7 +157,7 @@ def test_an_objects_state_resumes_exactly() -> None:
 def test_an_objects_state_keeps_the_options_for_the_objects_added_after_it() -> None:
     import json
 
-    options = {"cut_band": 4, "lighting": False}
+    options: dict[str, Any] = {"cut_band": 4, "lighting": False}
     tracker = ObjectsTracker({1: mask_to_contour(CROWD.masks[0][0], 48)}, **options)
     for frame in CROWD.frames[:2]:
         tracker.step(frame)
