@@ -9,7 +9,7 @@ its status and code, :func:`as_api_error` applies it, and the handlers of
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -90,6 +90,18 @@ def body(status: int, code: str, message: str, **extra: Any) -> dict[str, Any]:
     return {"error": {"status": status, "code": code, "message": message, **extra}}
 
 
+def first_invalid(errors: Sequence[Mapping[str, Any]], context: str = "") -> str:
+    """The first of pydantic's ``errors`` as one line: ``"where: what"``, where is
+    ``context`` (e.g. the WebSocket control's name) and the field's path, whichever exist."""
+    if not errors:
+        return f"{context}: invalid" if context else "invalid"
+    first = errors[0]
+    path = [context] if context else []
+    path += [str(p) for p in first.get("loc", ()) if p != "body"]
+    where, what = ".".join(path), str(first.get("msg", "invalid"))
+    return f"{where}: {what}" if where else what
+
+
 def malformed_json(error: Mapping[str, Any]) -> str:
     """A person's reading of a JSON decode error: what is wrong and at which character."""
     loc = error.get("loc", ())
@@ -108,6 +120,15 @@ def allowed_methods(app: FastAPI, path: str) -> list[str]:
     return sorted(methods)
 
 
+UNPARSED_BODY = "There was an error parsing the body"
+"""FastAPI's 400 detail for a JSON body its parser gave up on (nested too deep, not UTF-8)."""
+
+
+def _is_json(media_type: str) -> bool:
+    """``application/json`` or a ``+json`` type (``application/merge-patch+json``)."""
+    return media_type == "application/json" or media_type.endswith("+json")
+
+
 def install(app: FastAPI) -> None:
     """Register the handlers that turn every failure into a JSON error."""
 
@@ -123,18 +144,28 @@ def install(app: FastAPI) -> None:
         )
 
     @app.exception_handler(RequestValidationError)
-    async def invalid(_: Request, exc: RequestValidationError) -> JSONResponse:
+    async def invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
+        kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        in_body = any(tuple(e.get("loc", ()))[:1] == ("body",) for e in exc.errors())
+        if in_body and kind and not _is_json(kind):  # a JSON body sent as something else
+            metrics.ERRORS.labels(kind="unsupported_media_type").inc()
+            message = f"send the body as application/json; got {kind}"
+            return JSONResponse(body(415, "unsupported_media_type", message), status_code=415)
         broken = [e for e in exc.errors() if e.get("type") == "json_invalid"]
-        if broken:  # not JSON at all: a malformed request (400), not an invalid value (422)
+        empty = [
+            e for e in exc.errors() if e.get("type") == "missing" and e.get("loc") == ("body",)
+        ]
+        if broken or empty:  # not JSON at all: a malformed request (400), not an invalid value
             metrics.ERRORS.labels(kind="bad_json").inc()
-            return JSONResponse(body(400, "bad_json", malformed_json(broken[0])), status_code=400)
+            message = (
+                malformed_json(broken[0]) if broken else "the body is empty: send a JSON object"
+            )
+            return JSONResponse(body(400, "bad_json", message), status_code=400)
         metrics.ERRORS.labels(kind="invalid").inc()
         details = [
             {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))} for e in exc.errors()
         ]
-        first = details[0] if details else {"loc": [], "msg": "invalid request"}
-        where = ".".join(str(p) for p in first["loc"] if p != "body")
-        message = f"{where}: {first['msg']}" if where else str(first["msg"])
+        message = first_invalid(details) if details else "invalid request"
         return JSONResponse(body(422, "invalid", message, details=details), status_code=422)
 
     @app.exception_handler(StarletteHTTPException)
@@ -142,6 +173,8 @@ def install(app: FastAPI) -> None:
         code = {404: "not_found", 405: "method_not_allowed", 408: "timeout", 413: "too_large"}.get(
             exc.status_code, "http_error"
         )
+        if exc.status_code == 400 and exc.detail == UNPARSED_BODY:  # FastAPI's, for JSON
+            code = "bad_json"  # nested too deep to parse, or not UTF-8
         metrics.ERRORS.labels(kind=code).inc()
         headers = dict(getattr(exc, "headers", None) or {})
         if exc.status_code == 405:  # every method of the path (RFC 9110), not one route's

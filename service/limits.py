@@ -12,6 +12,11 @@ from service import metrics
 from service.errors import body
 from service.units import too_many_bytes
 
+MULTIPART_SLACK = 64 * 1024
+"""Bytes a frame's body may exceed ``EFDM_MAX_FRAME_BYTES`` by: a multipart upload's
+boundaries and part headers.  The image itself is held to the limit when it is decoded;
+the 413 names the limit as set."""
+
 
 class BodyLimit:
     """Answer 413 once a body exceeds its limit (frames and JSON have their own), 408 when
@@ -36,11 +41,12 @@ class BodyLimit:
             await self.app(scope, receive, send)
             return
         is_frame = scope["path"].endswith("/frames")
-        limit = self.frame_bytes + 64 * 1024 if is_frame else self.json_bytes  # multipart framing
+        limit = self.frame_bytes + MULTIPART_SLACK if is_frame else self.json_bytes
+        stated = self.frame_bytes if is_frame else self.json_bytes  # the documented limit
         headers = dict(scope.get("headers") or [])
         declared = headers.get(b"content-length")
         if declared is not None and declared.isdigit() and int(declared) > limit:
-            await _too_large(send, limit, int(declared))
+            await _too_large(send, stated, int(declared))
             return
         seen = 0
         responded = False
@@ -57,7 +63,7 @@ class BodyLimit:
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > limit:
-                    raise _BodyTooLarge(limit)
+                    raise _BodyTooLarge(stated)
                 complete = not message.get("more_body", False)
             return message
 
@@ -71,7 +77,7 @@ class BodyLimit:
             await self.app(scope, counting, guarded)
         except _BodyTooLarge:
             if not responded:
-                await _too_large(send, limit, None)
+                await _too_large(send, stated, None)
         except _BodyTooSlow as slow:
             if not responded:
                 await _refuse(send, 408, "timeout", slow.detail)

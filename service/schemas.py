@@ -15,7 +15,10 @@ from engine.physics import METHODS
 LIMIT = 1e9
 """Largest coordinate or force magnitude accepted (pixels): far beyond any image,
 far below where float64 arithmetic on a contour could overflow."""
-Finite = Annotated[float, Field(allow_inf_nan=False, ge=-LIMIT, le=LIMIT)]
+Finite = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-LIMIT, le=LIMIT)]
+"""A coordinate or force: a JSON number (strict: not ``"12"`` or ``true``)."""
+Flag = Annotated[bool, Field(strict=True)]
+"""A JSON ``true`` or ``false`` (strict: not ``"yes"`` or ``1``)."""
 Point = Annotated[tuple[Finite, Finite], Field(description="[x, y] pixels")]
 if TYPE_CHECKING:
     Method = str
@@ -29,8 +32,8 @@ class Circle(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     center: Point
-    radius: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]
-    count: Annotated[int, Field(ge=3, description="number of nodes")] = 64
+    radius: Annotated[float, Field(strict=True, gt=0, le=1e6, allow_inf_nan=False)]
+    count: Annotated[int, Field(strict=True, ge=3, description="number of nodes")] = 64
 
     @model_validator(mode="after")
     def _inside_limits(self) -> Circle:
@@ -67,7 +70,7 @@ class ObjectSpec(BaseModel):
         description="PNG (base64) of the frames' size, non-zero on the object; every separate "
         "piece of at least 100 pixels becomes one of the object's contours",
     )
-    snap: bool | None = Field(None, description="snap the outline on the next frame")
+    snap: Flag | None = Field(None, description="snap the outline on the next frame")
 
     @model_validator(mode="after")
     def _one_shape(self) -> ObjectSpec:
@@ -102,7 +105,7 @@ class SessionCreate(BaseModel):
         f"contour of {BOX_NODES} nodes, snapped onto the object on the first frame unless "
         "'snap' is false",
     )
-    snap: bool | None = Field(
+    snap: Flag | None = Field(
         None,
         description="snap the outline onto the object inside it on the first frame (GrabCut; "
         "under a second at 854x480): default true for 'box', false for 'nodes' and 'circle'",
@@ -113,16 +116,18 @@ class SessionCreate(BaseModel):
         description=f"several objects (at most {MAX_OBJECTS}) instead of one contour; frame "
         "results then carry 'objects'",
     )
-    closed: bool = True
-    stiffness: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)] = 10.0
+    closed: Flag = True
+    stiffness: Annotated[float, Field(strict=True, gt=0, le=1e6, allow_inf_nan=False)] = 10.0
     method: Method = "exact"
     tracking: dict[str, Any] = Field(
         default_factory=dict, description="engine.TrackerOptions fields, e.g. {'stiffness': 40}"
     )
-    ttl_seconds: Annotated[float, Field(gt=0, le=1e9, allow_inf_nan=False)] | None = Field(
-        None,
-        description="idle seconds before the session expires; at most, and by default, the "
-        "server's EFDM_SESSION_TTL_SECONDS (the demo page asks for 120)",
+    ttl_seconds: Annotated[float, Field(strict=True, gt=0, le=1e9, allow_inf_nan=False)] | None = (
+        Field(
+            None,
+            description="idle seconds before the session expires; at most, and by default, the "
+            "server's EFDM_SESSION_TTL_SECONDS (the demo page asks for 120)",
+        )
     )
 
     @model_validator(mode="after")

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine import Tracker, deform
-from engine.geometry import mask_to_contour
+from engine.geometry import contour_to_mask, mask_to_contour
 from engine.physics import MODAL_METHODS
 from engine.tracking import pack_image, unpack_image
 from engine.tracking.snap import snap
@@ -196,7 +196,8 @@ class Session:
         Raises
         ------
         InvalidInputError
-            The session is an open chain (only closed contours are tracked).
+            The session is an open chain (only closed contours are tracked), or its
+            contour lies outside its first frame.
         BadImageError
             The tracker cannot use the frame.
         """
@@ -205,6 +206,13 @@ class Session:
         if self.tracker is None:
             raise InvalidInputError("frames need a closed contour (an object boundary)")
         start = time.perf_counter()
+        if self.frame_index < 0 and self.snap_outline is None:
+            height, width = frame.shape[:2]
+            if not contour_to_mask(self.nodes, (height, width)).any():  # as a snap refuses it
+                raise InvalidInputError(
+                    f"the contour lies outside the first frame ({width}{TIMES}{height}); "
+                    "the session is unchanged"
+                )
         if self.snap_outline is not None and self.snap_frame is None:
             self._snap(frame)
         elif self.snap_outline is not None:

@@ -64,7 +64,7 @@ from service.domain_errors import (
     SessionNotFoundError,
     StreamReplacedError,
 )
-from service.errors import ApiError, as_api_error
+from service.errors import ApiError, as_api_error, first_invalid
 from service.schemas import ForcesIn, ObjectSpec
 from service.settings import Settings
 from service.shutdown import Stream
@@ -316,9 +316,8 @@ async def _object_control(
             if "replace_object" in message and not key:
                 raise InvalidInputError("replace_object: give the object's 'id'")
     except ValidationError as exc:
-        first = exc.errors()[0]
-        where = ".".join(str(p) for p in first["loc"])
-        return error_message(InvalidInputError(f"{where}: {first['msg']}"))
+        control = "add_object" if "add_object" in message else "replace_object"
+        return error_message(InvalidInputError(first_invalid(exc.errors(), control)))
     except ServiceError as exc:
         return error_message(exc)
     try:
@@ -353,9 +352,7 @@ async def _control(
     try:
         payload = ForcesIn.model_validate({"forces": message.get("forces")})
     except ValidationError as exc:
-        first = exc.errors()[0]
-        where = ".".join(str(p) for p in first["loc"])
-        return error_message(InvalidInputError(f"{where}: {first['msg']}"))
+        return error_message(InvalidInputError(first_invalid(exc.errors())))
     try:
         async with lease.turn() as session:
             U = await compute(cpu, lambda: session.apply_forces(payload.forces))

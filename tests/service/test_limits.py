@@ -18,6 +18,7 @@ from prometheus_client.parser import text_string_to_metric_families
 
 from engine import Tracker
 from engine.geometry import circle_nodes
+from engine.physics.matrices import system_matrix
 from service.app import create_app
 from service.settings import Settings
 from tests.service.conftest import disc_frame
@@ -152,6 +153,26 @@ def test_non_finite_numbers_in_a_new_session(api: TestClient, text: str) -> None
     error_of(raw_json(api, "/v1/sessions", text), 422, "invalid")
 
 
+@pytest.mark.parametrize(
+    "spec",
+    [
+        {"nodes": [["1", "2"], ["30", "4"], ["5", "60"]]},
+        {"nodes": [[True, False], [30, 4], [5, 60]]},
+        {"circle": {"center": [50, 50], "radius": "10"}},
+        {"circle": {"center": [50, 50], "radius": 10, "count": "12"}},
+        {"circle": {"center": [50, 50], "radius": 10}, "closed": "yes"},
+        {"circle": {"center": [50, 50], "radius": 10}, "snap": 1},
+        {"circle": {"center": [50, 50], "radius": 10}, "stiffness": "3"},
+    ],
+    ids=["text", "booleans", "radius", "count", "closed", "snap", "stiffness"],
+)
+def test_numbers_and_flags_must_be_json_numbers_and_booleans(
+    api: TestClient, spec: dict[str, Any]
+) -> None:
+    """Found by an audit: text and booleans were coerced (``"closed": "yes"`` was true)."""
+    error_of(api.post("/v1/sessions", json=spec), 422, "invalid")
+
+
 @pytest.mark.parametrize("value", ["NaN", "Infinity", "-Infinity", "1e999", "-1e400"])
 def test_non_finite_forces(api: TestClient, value: str) -> None:
     body = create(api)
@@ -228,19 +249,26 @@ def test_forces_overflowing_an_open_chain_are_refused(api: TestClient) -> None:
     assert (after["nodes"], after["version"]) == (body["nodes"], 1)
 
 
+TRIANGLE: dict[str, Any] = {"nodes": [[0, 0], [4, 0], [0, 4]], "stiffness": 10}
+FLATTENING = (system_matrix(3, 10.0) @ np.array([[0.0, 0.0], [0.0, 0.0], [2.0, -4.0]])).tolist()
+"""Forces whose displacement puts the third node of :data:`TRIANGLE` on the line through
+the other two: a contour enclosing no area."""
+
+
 def test_forces_collapsing_a_closed_contour_are_refused(api: TestClient) -> None:
-    """Forces that collapse the contour (rest + U all one point) are the client's error."""
-    body = create(api, {"nodes": [[0, 0], [1e-9, 0], [0, 1e-9]]})
+    """Forces that collapse the contour (no area left) are the client's error."""
+    body = create(api, TRIANGLE)
     url = f"/v1/sessions/{body['id']}/forces"
-    error_of(api.post(url, json={"forces": [[1e9, 1e9]] * 3}), 422, "invalid")
+    error = error_of(api.post(url, json={"forces": FLATTENING}), 422, "invalid")
+    assert "no area" in error["message"]
     after = api.get(f"/v1/sessions/{body['id']}").json()
     assert (after["nodes"], after["version"]) == (body["nodes"], 1)  # left as it was
 
 
 def test_forces_collapsing_a_contour_on_the_stream_are_an_error_message(api: TestClient) -> None:
-    sid = create(api, {"nodes": [[0, 0], [1e-9, 0], [0, 1e-9]]})["id"]
+    sid = create(api, TRIANGLE)["id"]
     with api.websocket_connect(f"/v1/sessions/{sid}/stream") as ws:
-        ws.send_json({"forces": [[1e9, 1e9]] * 3})
+        ws.send_json({"forces": FLATTENING})
         message = ws.receive_json()
         assert message["type"] == "error"
         assert message["error"]["status"] == 422
@@ -262,7 +290,9 @@ def test_frame_over_the_limit_with_content_length(api: TestClient) -> None:
         content=oversized_jpeg(),
         headers={"content-type": "image/jpeg"},
     )
-    error_of(response, 413, "too_large")
+    error = error_of(response, 413, "too_large")
+    # the limit as set, not with the multipart framing's allowance (once "320 KiB")
+    assert error["message"].endswith("the limit is 256 KiB")
 
 
 def test_frame_over_the_limit_chunked(api: TestClient) -> None:
@@ -272,7 +302,8 @@ def test_frame_over_the_limit_chunked(api: TestClient) -> None:
         content=chunks(oversized_jpeg()),
         headers={"content-type": "image/jpeg"},
     )
-    error_of(response, 413, "too_large")
+    error = error_of(response, 413, "too_large")
+    assert error["message"] == "body is larger than the limit of 256 KiB"
 
 
 def test_multipart_frame_over_the_limit_with_content_length(api: TestClient) -> None:

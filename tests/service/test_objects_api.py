@@ -295,5 +295,9 @@ def test_objects_are_changed_by_control_messages_mid_stream(client: TestClient) 
         assert (missing["type"], missing["error"]["code"]) == ("error", "object_not_found")
         ws.send_json({"replace_object": {"circle": {"center": [1, 1], "radius": 3}}})
         assert "give the object's 'id'" in ws.receive_json()["error"]["message"]
+        ws.send_json({"add_object": {"box": [1, 1, 0, 0]}})  # the control is named, no stray ": "
+        assert ws.receive_json()["error"]["message"].startswith("add_object: ")
+        ws.send_json({"add_object": "x"})
+        assert ws.receive_json()["error"]["message"].startswith("add_object: ")
         ws.send_bytes(disc_frame(164.0, 120.0))
         assert [o["id"] for o in ws.receive_json()["objects"]] == ["1"]

@@ -344,9 +344,11 @@ def test_a_frame_whose_result_would_pass_the_limit_changes_nothing(
     far = [[LIMIT - 100.0 + x, LIMIT - 100.0 + y] for x, y in ((0, 0), (40, 0), (40, 40), (0, 40))]
     session = Session.create(SessionCreate(nodes=far), None, 64)
     frame = np.zeros((48, 64, 3), np.uint8)
-    session.track(frame)  # the first frame: the tracker starts
     tracker = session.tracker
     assert tracker is not None
+    # the first frame, started directly: a session refuses a contour outside its first frame
+    tracker.step(frame)
+    session.frame_index, session.frame_size = 0, (64, 48)
     state, version = tracker.to_state(), session.version
     step = tracker.step
 
@@ -582,6 +584,44 @@ def test_malformed_json_is_a_400_saying_where(client: TestClient, body: bytes, w
     assert error["code"] == "bad_json"
     assert "not valid JSON" in error["message"]
     assert where in error["message"]
+
+
+def test_a_contour_outside_the_first_frame_is_a_422_that_changes_nothing(
+    client: TestClient,
+) -> None:
+    """As a snapped box and an object of a session of several are refused."""
+    sid = create(client, {"box": [5000, 5000, 5100, 5100], "snap": False})["id"]
+    error = error_of(post_frame(client, sid, disc_frame(160, 120)), 422)
+    assert error["message"].startswith("the contour lies outside the first frame (320")
+    assert client.get(f"/v1/sessions/{sid}").json()["frame_index"] == -1
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (b"", "the body is empty"),
+        (b"[" * 100_000 + b"]" * 100_000, "error parsing the body"),  # nested too deep
+        (b'{"nodes": "\xff\xfe"}', ""),  # not UTF-8
+    ],
+    ids=["empty", "nested", "not UTF-8"],
+)
+def test_bodies_that_are_not_json_are_all_bad_json(
+    client: TestClient, body: bytes, message: str
+) -> None:
+    response = client.post(
+        "/v1/sessions", content=body, headers={"content-type": "application/json"}
+    )
+    error = error_of(response, 400)
+    assert error["code"] == "bad_json"
+    assert message in error["message"]
+
+
+@pytest.mark.parametrize("media_type", ["text/plain", "application/x-www-form-urlencoded"])
+def test_json_sent_as_another_media_type_is_a_415(client: TestClient, media_type: str) -> None:
+    body = b'{"circle": {"center": [160, 120], "radius": 40}}'
+    response = client.post("/v1/sessions", content=body, headers={"content-type": media_type})
+    error = error_of(response, 415)
+    assert error["message"] == f"send the body as application/json; got {media_type}"
 
 
 def test_a_frame_of_another_size_says_tracking_restarted(client: TestClient) -> None:
