@@ -269,8 +269,13 @@ class Tracker:
     @property
     def previous_frame(self) -> NDArray[np.uint8] | None:
         """The grey frame the contour is on, on the working grid (downscaled when the
-        frames' shorter side exceeds ``working_side``; None before the first frame)."""
-        return self._previous
+        frames' shorter side exceeds ``working_side``; None before the first frame): a
+        read-only view, as the next frame is tracked against it."""
+        if self._previous is None:
+            return None
+        view = self._previous.view()
+        view.flags.writeable = False
+        return view
 
     def _in_frame(self, nodes: NDArray[np.float64]) -> NDArray[np.float64]:
         """Working-grid ``[x, y]`` points in the frame's pixels (a copy)."""
@@ -456,8 +461,10 @@ class Tracker:
         # back after an absence, the local contour is where it drifted while there was
         # nothing to see: the remembered shape, searched for, competes with it once
         back = memory.misses >= AFRESH_AFTER and memory.probation == 0 and not memory.reacquired
+        # every frame that does not end confident counts, in view or not: an object back
+        # from beyond the frame's edge or from behind the others is back after an absence
+        memory.misses += int(lost)
         if (lost or back) and visible and share < SEARCH_UNLESS_COVERED:
-            memory.misses += int(lost)
             retry = self._search(image, grey, prediction)
             if retry is not None:
                 moved = carry_by_shape(hold, self._nodes, retry.nodes)

@@ -263,6 +263,15 @@ def test_contour_wholly_outside_the_frame(where: tuple[float, float], frames: li
         assert result.confidence == 0.0
 
 
+def test_frames_out_of_view_count_as_missed(frames: list[U8]) -> None:
+    """Found by a review: only frames that searched counted, so an object back from beyond
+    the frame's edge was never back after an absence (the cues not started anew)."""
+    tracker = Tracker(circle_nodes((W + 50.0, H / 2), 15.0, 32))
+    for frame in frames[:5]:
+        assert tracker.step(frame).confidence == 0.0
+    assert tracker._memory.misses == 4  # every frame after the first
+
+
 @pytest.mark.parametrize(
     "nodes",
     [
