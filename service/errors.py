@@ -145,6 +145,14 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
+        from service.auth import bearer, check_key
+
+        settings = getattr(request.app.state, "settings", None)
+        if settings is not None:  # the body is read before the key is checked: 401 first
+            try:
+                check_key(settings, bearer(request.headers.get("authorization")))
+            except ApiError as refused:
+                return await api_error(request, refused)
         kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
         in_body = any(tuple(e.get("loc", ()))[:1] == ("body",) for e in exc.errors())
         if in_body and kind and not _is_json(kind):  # a JSON body sent as something else

@@ -95,6 +95,10 @@ def test_missing_and_wrong_keys_are_told_apart(client: TestClient) -> None:
 def test_authentication_comes_before_lookup(client: TestClient) -> None:
     assert_unauthorized(client.get("/v1/sessions/no-such-session"))
     assert_unauthorized(client.post("/v1/sessions", content=b"{bad json"))
+    as_json = {"content-type": "application/json"}
+    for body in (b"{bad json", b"", b'{"circle": {"center": [1, 1], "radius": -1}}'):
+        assert_unauthorized(client.post("/v1/sessions", content=body, headers=as_json))
+    assert_unauthorized(client.post("/v1/sessions", content=b"{}", headers={"content-type": "a/b"}))
 
 
 @pytest.mark.parametrize(
