@@ -66,7 +66,7 @@ SHAPE_GRID = 96
 """Side of the comparison grid: 2.4 square roots of the area each side of the centroid,
 room for a rectangle up to about 20 times as long as it is wide."""
 
-COEFFICIENTS = (-4.3285, 4.6431, -0.88, 0.1875, 0.2965, 0.1624, 0.0489, 2.5563, -3.1408, -2.8436)
+COEFFICIENTS = (-4.7263, 4.9001, -0.7458, 0.2034, 0.3076, 0.1327, 0.127, 2.6549, -3.3755, -2.6747)
 """Logistic model of the overlap: bias; mean p(object) inside, mean p(object) in the
 ring outside (as the appearance model sees them, occluders included); settled (1) or
 not (0); mean motion log-odds inside, mean in the ring outside (positive: moves with
@@ -76,8 +76,12 @@ the inside's and the ring's change from how they usually are for this object
 (:attr:`Evidence.usual_inside`, :attr:`Evidence.usual_outside`).
 Fitted by cross-entropy to the IoU of every scored frame of the thirty DAVIS-2016
 training sequences tracked with the default options from five node counts (10,095
-frames; ``python -m bench.tracking.confidence`` prints the fit; refitted on 2026-11-29,
-late morning, when the light's steps below a grey level began to be measured in full
+frames; ``python -m bench.tracking.confidence`` prints the fit, whose bias -4.7164 is
+lowered by 0.0099 so that the rule's threshold falls on :data:`TRACKING_FROM`; refitted on
+2026-11-29, night, when a re-acquisition began to carry the nodes' hold by shape
+(:func:`engine.tracking.holding.carry_by_shape`: the tracks of the sequences with
+re-acquisitions changed, bmx-bumps' most), that late morning when the light's steps
+below a grey level began to be measured in full
 (:data:`engine.tracking._lighting_kernel.RECENTRE_PASSES`: the tracks of a few sequences
 changed), early that morning when wider strips were bridged
 (:data:`engine.tracking.beyond_band.BRIDGE_GAP`: the tracks of a few sequences changed,
@@ -105,16 +109,16 @@ together, the two weights say "the inside as it is, the ring compared with its u
 (on the tracks of the day they were added, held out: 69.7 % of the bad frames flagged
 without them, 85.6 % with them)."""
 GREY_COEFFICIENTS = (
-    -4.7694,
-    4.1916,
-    -0.4446,
-    0.1791,
-    0.4743,
-    -0.565,
-    0.303,
-    3.924,
-    -3.0578,
-    -1.5704,
+    -3.5652,
+    2.9643,
+    -1.537,
+    0.2402,
+    0.3406,
+    -0.4465,
+    0.3478,
+    3.8287,
+    -1.5549,
+    -0.4934,
 )
 """The model of :data:`COEFFICIENTS`, its inputs the same, for grey frames: those whose
 colour models read texture (:attr:`engine.tracking.options.TrackerOptions.grey_texture`,
@@ -344,7 +348,7 @@ def evidence(
     inside = float(p[inner].mean()) if both else 0.5
     outside = float(p[ring].mean()) if both else 0.5
     shape = 1.0 if outline is None else shape_overlap(nodes, outline)
-    if maps.motion is None or not (found_in and found_out):
+    if maps.motion is None or not both:
         return Evidence(inside, outside, settled, shape=shape)
     # the log of the counted pixels only, not of the whole map
     odds_in, odds_out = cv2.log(maps.motion[inner]).ravel(), cv2.log(maps.motion[ring]).ravel()
