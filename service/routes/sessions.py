@@ -194,8 +194,12 @@ async def read_image(request: Request, settings: Settings) -> tuple[bytes, str |
                 if upload is None or isinstance(upload, str):
                     raise ApiError(422, "invalid", "multipart body needs a file field 'file'")
                 return await upload.read(), upload.content_type
-        except (ApiError, StarletteHTTPException):
+        except ApiError:
             raise
+        except StarletteHTTPException as exc:  # Starlette's own refusals of the framing
+            if exc.status_code != 400:
+                raise
+            raise ApiError(400, "bad_request", f"malformed multipart body: {exc.detail}") from None
         except Exception as exc:  # malformed multipart framing
             raise ApiError(400, "bad_request", f"malformed multipart body: {exc}") from None
     return await request.body(), content_type or None

@@ -450,6 +450,15 @@ def test_multipart_needs_a_file_field_named_file(client: TestClient) -> None:
         headers={"content-type": "multipart/form-data; boundary=xyz"},
     )
     assert 400 <= broken.status_code < 500
+    no_boundary = client.post(
+        url, content=b"abc", headers={"content-type": "multipart/form-data"}
+    )  # Starlette refuses it: one of the service's codes, not its generic http_error
+    assert error_of(no_boundary, 400)["code"] == "bad_request"
+    two_files = client.post(
+        url,
+        files=[("file", ("a.jpg", b"x", "image/jpeg")), ("file", ("b.jpg", b"y", "image/jpeg"))],
+    )
+    assert error_of(two_files, 400)["code"] == "bad_request"
     assert client.get(f"/v1/sessions/{sid}").json()["frame_index"] == -1
 
 
