@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import glob
 import math
+import os
 import re
 from collections.abc import Generator
 from fractions import Fraction
@@ -21,6 +22,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from efdm_cli._common import EXIT_INVALID, EXIT_IO, CliError
+
+# FFmpeg's own lines ("moov atom not found") before the command's clean error: quiet
+# unless the user asks for them (read when OpenCV first opens a video)
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 __all__ = [
     "DEFAULT_FPS",

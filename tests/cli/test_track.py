@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -290,6 +291,19 @@ def test_io_errors_exit_1(
     ]
     for args, message in cases:
         assert message in _error(capsys, ["track", *args, *init], EXIT_IO), args
+
+
+def test_a_file_that_is_not_a_video_gives_one_clean_line(tmp_path: Path) -> None:
+    """FFmpeg's own "moov atom not found" came before the command's error (an audit)."""
+    bad = tmp_path / "bad.mp4"
+    bad.write_bytes(b"this is not a video")
+    env = {k: v for k, v in os.environ.items() if k != "OPENCV_FFMPEG_LOGLEVEL"}
+    run = subprocess.run(
+        [sys.executable, "-m", "efdm_cli", "track", str(bad), "--init-circle", CIRCLE, "-q"],
+        capture_output=True, text=True, env=env, timeout=120, check=False,
+    )  # fmt: skip
+    assert run.returncode == EXIT_IO
+    assert run.stderr == f"efdm track: error: cannot open video {bad}\n"
 
 
 def test_a_reader_closing_the_pipe_stops_the_run_quietly(folder: Path) -> None:
