@@ -154,16 +154,15 @@ def install(app: FastAPI) -> None:
                 check_key(settings, bearer(request.headers.get("authorization")))
             except ApiError as refused:
                 return await api_error(request, refused)
+        errors = exc.errors()
         kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
-        in_body = any(tuple(e.get("loc", ()))[:1] == ("body",) for e in exc.errors())
+        in_body = any(tuple(e.get("loc", ()))[:1] == ("body",) for e in errors)
         if in_body and kind and not _is_json(kind):  # a JSON body sent as something else
             metrics.ERRORS.labels(kind="unsupported_media_type").inc()
             message = f"send the body as application/json; got {kind}"
             return JSONResponse(body(415, "unsupported_media_type", message), status_code=415)
-        broken = [e for e in exc.errors() if e.get("type") == "json_invalid"]
-        empty = [
-            e for e in exc.errors() if e.get("type") == "missing" and e.get("loc") == ("body",)
-        ]
+        broken = [e for e in errors if e.get("type") == "json_invalid"]
+        empty = any(e.get("type") == "missing" and e.get("loc") == ("body",) for e in errors)
         if broken or empty:  # not JSON at all: a malformed request (400), not an invalid value
             metrics.ERRORS.labels(kind="bad_json").inc()
             message = (
@@ -171,9 +170,7 @@ def install(app: FastAPI) -> None:
             )
             return JSONResponse(body(400, "bad_json", message), status_code=400)
         metrics.ERRORS.labels(kind="invalid").inc()
-        details = [
-            {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))} for e in exc.errors()
-        ]
+        details = [{"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))} for e in errors]
         message = first_invalid(details) if details else "invalid request"
         return JSONResponse(body(422, "invalid", message, details=details), status_code=422)
 
