@@ -16,6 +16,8 @@ track's.  Coordinates are ``[x, y]`` pixels (x = column, y = row).
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -81,8 +83,13 @@ def jumped(local: NDArray[np.float64], found: NDArray[np.float64]) -> bool:
 
 
 def search_reach(misses: int) -> float:
-    """Window reach in object sizes after ``misses`` frames in a row without tracking (>= 1)."""
-    return float(min(2.0 ** (max(misses, 1) - 1), MAX_REACH))
+    """Window reach in object sizes after ``misses`` frames in a row without tracking (>= 1).
+
+    The exponent is capped first: an object lost for a thousand frames has the widest
+    window, not a float overflow.
+    """
+    doublings = min(max(misses, 1) - 1, math.ceil(math.log2(MAX_REACH)))
+    return float(min(2.0**doublings, MAX_REACH))
 
 
 def search_shape(

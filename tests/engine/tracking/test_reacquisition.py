@@ -58,6 +58,8 @@ def ious_after_hiding(seed: int) -> list[float]:
 def test_the_window_doubles_up_to_its_limit() -> None:
     assert [search_reach(k) for k in (1, 2, 3, 4, 5, 9)] == [1, 2, 4, 8, 8, 8]
     assert search_reach(0) == 1
+    # an object lost for a long time: the widest window, not an OverflowError
+    assert search_reach(1025) == search_reach(10**9) == MAX_REACH
     assert MAX_REACH == 8
 
 
