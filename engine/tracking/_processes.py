@@ -247,8 +247,11 @@ def contours_of(result: Any) -> list[NDArray[np.float64]]:
 
 def restore(state: Mapping[str, Any]) -> Tracker | PiecesTracker:
     """A :class:`Tracker` or :class:`PiecesTracker` from its state (ValueError if malformed)."""
-    if isinstance(state, Mapping) and state.get("kind") == "pieces":
+    kind = state.get("kind") if isinstance(state, Mapping) else None
+    if kind == "pieces":
         return PiecesTracker.from_state(state)
+    if kind is not None:  # a tracker's state has no kind
+        raise ValueError(f"an object's state is a tracker's or of kind 'pieces'; got {kind!r}")
     return Tracker.from_state(state)
 
 

@@ -160,7 +160,16 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
                 else unpack_image(previous)
             )
             _regrid(tracker, state.get("frame_shape"))
-    except (KeyError, TypeError, ValueError, binascii.Error, zlib.error) as exc:
+    # AttributeError: a part that should be a dict is not; OverflowError: an infinite count
+    except (
+        KeyError,
+        TypeError,
+        ValueError,
+        AttributeError,
+        OverflowError,
+        binascii.Error,
+        zlib.error,
+    ) as exc:
         raise ValueError(f"malformed tracker state: {exc}") from None
     return tracker
 

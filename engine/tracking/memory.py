@@ -120,6 +120,8 @@ class Memory:
         outline turned) keeps its marks on the contour's nodes.  Marks need an outline,
         one per point.
         """
+        if not isinstance(state, Mapping):
+            raise ValueError(f"the search state must be a dict; got {type(state).__name__}")
         outline = None if state.get("outline") is None else as_nodes(state["outline"])
         marks = state.get("marks")
         if marks is not None:

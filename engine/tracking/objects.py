@@ -387,8 +387,8 @@ class ObjectsTracker:
         for entry in entries:
             if not isinstance(entry, list | tuple) or len(entry) != 2:
                 raise ValueError("each object of the state must be [id, state]")
-            key, inner = entry
-            key = tuple(key) if isinstance(key, list) else key  # JSON turns tuples into lists
+            key, inner = entry[0], entry[1]
+            key = _object_id(key)
             if key in restored.trackers or len(restored.trackers) >= restored.max_objects:
                 raise ValueError(f"object {key!r}: repeated, or one too many")
             tracker = restore(inner)
@@ -400,6 +400,17 @@ class ObjectsTracker:
         return restored
 
 
+def _object_id(raw: object) -> Hashable:
+    """An object id read from a state: a list back to the tuple JSON made of it; ValueError
+    for one that cannot be an id (a dict, a list holding one)."""
+    key = tuple(raw) if isinstance(raw, list) else raw
+    try:
+        hash(key)
+    except TypeError:
+        raise ValueError(f"an object id must be a string or a number; got {raw!r}") from None
+    return key
+
+
 def _order_of(pairs: object, known: Mapping[Hashable, object]) -> Order:
     """The ``"in_front"`` pairs of a state, checked against the objects' ids."""
     if not isinstance(pairs, list):
@@ -408,7 +419,7 @@ def _order_of(pairs: object, known: Mapping[Hashable, object]) -> Order:
     for pair in pairs:
         if not isinstance(pair, list | tuple) or len(pair) != 2:
             raise ValueError("each in_front pair of an objects tracker state must be [front, back]")
-        front, back = (tuple(k) if isinstance(k, list) else k for k in pair)
+        front, back = (_object_id(k) for k in pair)
         if front not in known or back not in known or front == back:
             raise ValueError(f"in_front pair {pair!r}: not two of the state's objects")
         order[frozenset((front, back))] = front

@@ -204,6 +204,10 @@ def test_an_objects_state_with_bad_options_is_refused(options: object) -> None:
         {"kind": "objects", "objects": [], "in_front": [[1, 2]]},
         {"kind": "objects", "objects": [], "in_front": {"1": 2}},
         {"kind": "objects", "objects": [], "in_front": [[1]]},
+        {"kind": "objects", "objects": [[{"id": 1}, {}]]},
+        {"kind": "objects", "objects": [[[1, {"id": 1}], {}]]},
+        {"kind": "objects", "objects": [], "in_front": [[{"id": 1}, 2]]},
+        {"kind": "objects", "objects": [[1, {"kind": "neural"}]]},
     ],
 )
 def test_malformed_objects_states_are_refused(state: dict[str, object]) -> None:

@@ -283,6 +283,8 @@ MALFORMED: dict[str, Callable[[State], None]] = {
     "segmentation: no window size": lambda state: state["stages"]["segmentation"]["windows"].pop(
         "half"
     ),
+    "search: a string": setter("search", value="lost"),
+    "frame index: infinite": setter("frame_index", value=math.inf),
 }
 
 
@@ -441,3 +443,14 @@ def test_a_frame_is_kept_as_text_exactly_grey_or_colour() -> None:
     for bad in ("", base64.b64encode(b"not a png").decode()):
         with pytest.raises(ValueError, match="decode"):
             unpack_image(bad, colour=True)
+
+
+def test_a_track_lost_for_long_resumes_and_searches(
+    frames: list[U8], tracked_state: tuple[State, list[TrackResult], F64]
+) -> None:
+    """A million frames without the object (as a state may say): the widest search, not an
+    OverflowError on the next frame."""
+    state = copy.deepcopy(tracked_state[0])
+    state["search"]["misses"] = 10**6
+    result = Tracker.from_state(state).step(frames[-1])
+    assert np.isfinite(result.nodes).all()
