@@ -29,9 +29,11 @@ from engine.geometry import (
     circle_nodes,
     contour_to_mask,
     mask_to_contours,
+    polygon_area,
 )
 from engine.tracking import ObjectsTracker, pack_image, unpack_image
 from engine.tracking.snap import snap
+from engine.tracking.tracker import MIN_AREA
 from service.domain_errors import InvalidInputError, ObjectNotFoundError
 from service.schemas import BOX_NODES, MAX_OBJECTS, Circle, ObjectSpec
 
@@ -89,8 +91,17 @@ def first_contour(shape: dict[str, Any]) -> NDArray[np.float64]:
 
 def _snapped(mask: NDArray[np.uint8]) -> Contours:
     """A snap's contours: its :data:`MAX_PIECES` largest pieces of at least
-    :data:`~engine.geometry.MIN_PIECE_AREA` pixels."""
-    return mask_to_contours(mask, BOX_NODES, min_area=MIN_PIECE_AREA)[:MAX_PIECES]
+    :data:`~engine.geometry.MIN_PIECE_AREA` pixels whose outlines enclose an area a tracker
+    takes (:data:`engine.tracking.tracker.MIN_AREA`: a one-pixel line encloses none);
+    ValueError when none is left."""
+    pieces = mask_to_contours(mask, BOX_NODES, min_area=MIN_PIECE_AREA)
+    kept = [c for c in pieces if abs(polygon_area(c)) >= MIN_AREA][:MAX_PIECES]
+    if not kept:
+        raise ValueError(
+            f"no piece of what was found is one to track (at least {MIN_PIECE_AREA:g} px, "
+            "enclosing an area: not a line)"
+        )
+    return kept
 
 
 def outline(spec: ObjectSpec, max_nodes: int) -> tuple[Contours, dict[str, Any]]:

@@ -310,10 +310,11 @@ class Session:
             return
         try:
             mask = snap(frame, self.snap_outline)
-            nodes = mask_to_contour(mask, len(self.nodes))
+            # a contour the tracker refuses (a snap onto a one-pixel line encloses no area)
+            # is refused here, before anything changed
+            self.tracker.reset(mask_to_contour(mask, len(self.nodes)))
         except ValueError as exc:
             raise InvalidInputError(f"snap: {exc}") from None
-        self.tracker.reset(nodes)
         self.rest, self.nodes = self.tracker.nodes, self.tracker.nodes
         self.snap_frame = frame.copy()
 
@@ -331,9 +332,11 @@ class Session:
             return
         try:
             mask = snap(first, outline, next_frame=frame)
+            self.tracker.reset(mask_to_contour(mask, len(self.tracker.nodes)))
         except ValueError:
-            return  # the frame cannot be read with the first: the colour snap stands
-        self.tracker.reset(mask_to_contour(mask, len(self.tracker.nodes)))
+            # the frame cannot be read with the first, or the mask gives no contour the
+            # tracker takes (refused before it changed anything): the colour snap stands
+            return
         self.tracker.step(first)
 
     def to_record(self, *, compact: bool = False) -> dict[str, Any]:

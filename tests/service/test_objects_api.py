@@ -158,6 +158,23 @@ def test_what_the_first_frame_refutes_is_a_422_that_changes_nothing(
     assert unchanged_part(client.get(f"/v1/sessions/{sid}").json()) == before
 
 
+def test_an_object_snapped_onto_a_line_is_a_422_that_changes_nothing(client: TestClient) -> None:
+    """A box whose snap finds only a one-pixel line (no area to track) refuses the frame
+    before any object changed; not a 400 for the image, not half the objects placed."""
+    image = cv2.imdecode(np.frombuffer(disc_frame(160.0, 120.0), np.uint8), cv2.IMREAD_COLOR)
+    cv2.line(image, (20, 20), (140, 20), (0, 0, 255), 1)
+    body = cv2.imencode(".png", image)[1].tobytes()
+    spec = {"objects": [{"box": BOX}, {"id": "line", "box": [20, 19, 141, 22]}]}
+    sid = client.post("/v1/sessions", json=spec).json()["id"]
+    before = unchanged_part(client.get(f"/v1/sessions/{sid}").json())
+    refused = client.post(
+        f"/v1/sessions/{sid}/frames", content=body, headers={"content-type": "image/png"}
+    )
+    assert refused.status_code == 422, refused.text
+    assert "object 'line': snap" in refused.json()["error"]["message"]
+    assert unchanged_part(client.get(f"/v1/sessions/{sid}").json()) == before
+
+
 def test_single_contour_sessions_have_no_objects(client: TestClient) -> None:
     sid = client.post("/v1/sessions", json={"circle": {"center": [160, 120], "radius": 40}}).json()[
         "id"

@@ -101,6 +101,22 @@ def test_a_box_outside_the_first_frame_is_a_422_that_changes_nothing(client: Tes
     assert unchanged_part(client.get(f"/v1/sessions/{sid}").json()) == before
 
 
+def test_a_box_that_snaps_onto_a_line_is_a_422_that_changes_nothing(client: TestClient) -> None:
+    """A snap whose object encloses no area (a one-pixel line) is refused, not a 500."""
+    image = np.full((120, 160, 3), 40, np.uint8)
+    cv2.line(image, (20, 60), (140, 60), (0, 0, 255), 1)
+    line = cv2.imencode(".png", image)[1].tobytes()
+    sid = client.post("/v1/sessions", json={"box": [20, 59, 141, 62]}).json()["id"]
+    before = unchanged_part(client.get(f"/v1/sessions/{sid}").json())
+    for _ in range(2):  # and again: the session was left as it was
+        refused = client.post(
+            f"/v1/sessions/{sid}/frames", content=line, headers={"content-type": "image/png"}
+        )
+        assert refused.status_code == 422, refused.text
+        assert "snap" in refused.json()["error"]["message"]
+    assert unchanged_part(client.get(f"/v1/sessions/{sid}").json()) == before
+
+
 def test_the_python_client_starts_from_a_box(live_server: LiveServer) -> None:
     from service.client import Client
 
