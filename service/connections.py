@@ -13,7 +13,8 @@ until ``/healthz`` was unreachable.  Here:
 - the cap on concurrent connections is uvicorn's ``limit_concurrency``
   (beyond it a request gets ``503``), set by :func:`server_options`;
 - a WebSocket stream whose client stopped reading is given up by the route
-  after ``EFDM_WS_SEND_TIMEOUT_SECONDS`` (:mod:`service.routes.stream`).
+  after ``EFDM_WS_SEND_TIMEOUT_SECONDS`` (:mod:`service.routes.stream`), which then
+  drops the connection through :data:`ABORT` (:func:`aborting_protocol`).
 
 Request bodies that trickle in are cut off by :class:`service.limits.BodyLimit`.
 """
@@ -25,7 +26,17 @@ from typing import Any
 
 from service.settings import Settings
 
-__all__ = ["raise_open_file_limit", "server_options", "timed_protocol"]
+__all__ = [
+    "ABORT",
+    "aborting_protocol",
+    "raise_open_file_limit",
+    "server_options",
+    "timed_protocol",
+]
+
+ABORT = "efdm.abort"
+"""Scope key, in a WebSocket's ASGI scope, of a callable that drops the connection at once
+(set by :func:`aborting_protocol`; absent under another server or a test client)."""
 
 
 def raise_open_file_limit() -> int:
@@ -84,10 +95,31 @@ def timed_protocol(header_seconds: float) -> type[asyncio.Protocol]:
     return HeaderDeadlineProtocol
 
 
+def aborting_protocol() -> type[asyncio.Protocol]:
+    """uvicorn's WebSocket protocol, giving each stream's scope an :data:`ABORT` callable.
+
+    A client that stopped reading leaves results in the server's send buffer; ASGI's only
+    close is a graceful one, which waits for that buffer to drain, and it never does: the
+    socket stayed open, megabytes of buffers with it, until the operating system gave up
+    on the peer.  The route that gives such a client up calls ``scope[ABORT]()`` instead,
+    which aborts the transport: the socket is reset and its buffers freed at once.
+    """
+    from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
+
+    class AbortingProtocol(WebSocketsSansIOProtocol):
+        async def run_asgi(self) -> None:
+            scope: dict[str, Any] = self.scope  # type: ignore[assignment]
+            scope[ABORT] = self.transport.abort
+            await super().run_asgi()
+
+    return AbortingProtocol
+
+
 def server_options(settings: Settings) -> dict[str, Any]:
     """The uvicorn ``Config`` options that protect the server from slow and many clients."""
     return {
         "http": timed_protocol(settings.header_timeout_seconds),
+        "ws": aborting_protocol(),
         "limit_concurrency": settings.max_connections,
         "timeout_keep_alive": 5,
     }

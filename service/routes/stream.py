@@ -57,6 +57,7 @@ from pydantic import ValidationError
 
 from service import metrics
 from service.auth import check_key
+from service.connections import ABORT
 from service.deps import ApiKeyDep, CpuDep, SettingsDep, StoreDep, StreamsDep
 from service.domain_errors import (
     InvalidInputError,
@@ -204,8 +205,11 @@ async def _send(websocket: WebSocket, message: dict[str, Any]) -> None:
     settings: Settings = websocket.app.state.settings
     try:
         await asyncio.wait_for(websocket.send_json(message), settings.ws_send_timeout_seconds)
-    except TimeoutError as exc:  # not reading: the stream ends (the server resets the socket)
+    except TimeoutError as exc:  # not reading: the stream ends and its socket is reset
         metrics.ERRORS.labels(kind="stuck_client").inc()
+        abort = websocket.scope.get(ABORT)
+        if callable(abort):  # a graceful close would wait for the unread results forever
+            abort()
         raise ClientGoneError from exc
     except (WebSocketDisconnect, RuntimeError, OSError) as exc:
         raise ClientGoneError from exc
