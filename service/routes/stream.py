@@ -65,7 +65,7 @@ from service.domain_errors import (
     SessionNotFoundError,
     StreamReplacedError,
 )
-from service.errors import ApiError, as_api_error, first_invalid
+from service.errors import ApiError, as_api_error, first_invalid, log
 from service.schemas import ForcesIn, ObjectSpec
 from service.settings import Settings
 from service.shutdown import Stream
@@ -80,6 +80,9 @@ EVERY_QUEUE = 4
 """Messages waiting in ``mode=every`` before the server stops reading: enough to keep
 the tracker busy while the next frame arrives, few enough to bound memory (a few frames)."""
 MODES = ("latest", "every")
+UNEXPECTED = 1011
+"""Close code of an unexpected server error (RFC 6455: the server met a condition that
+kept it from fulfilling the request); clients read it as a 500."""
 OBJECT_CONTROLS = frozenset({"add_object", "replace_object", "remove_object"})
 CONTROLS = frozenset({"forces", "ping"}) | OBJECT_CONTROLS
 """The keys a control message may carry (one of them)."""
@@ -175,6 +178,10 @@ async def stream(
         await _close(websocket, fatal.code, fatal.reason)
     except* (WebSocketDisconnect, ClientGoneError):
         pass  # the client left while a result was on its way
+    except* Exception as group:  # a defect of ours: said with 1011, not a dropped socket
+        metrics.ERRORS.labels(kind="internal").inc()
+        log.error("unexpected error in a stream", exc_info=group.exceptions[0])
+        await _close(websocket, UNEXPECTED, "internal error")
     finally:
         metrics.WEBSOCKETS.dec()
         try:

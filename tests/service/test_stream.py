@@ -128,6 +128,26 @@ def assert_error(message: dict[str, Any], status: int) -> None:
     assert message["error"]["message"]
 
 
+@pytest.mark.parametrize("mode", ["latest", "every"])
+def test_an_unexpected_error_closes_the_stream_with_1011(
+    client: TestClient, monkeypatch: pytest.MonkeyPatch, mode: str
+) -> None:
+    """A defect of the server's is said with the close code clients read as a 500, not by
+    dropping the connection."""
+    import service.routes.stream as stream
+
+    async def broken(*_: object) -> None:
+        raise RuntimeError("a defect")
+
+    monkeypatch.setattr(stream, "track_encoded", broken)
+    sid = create(client)
+    with client.websocket_connect(f"/v1/sessions/{sid}/stream?mode={mode}") as ws:
+        ws.send_bytes(disc_frame(160, 120))
+        closed = closed_by(ws)
+    assert closed.code == 1011
+    assert client.get(f"/v1/sessions/{sid}").json()["frame_index"] == -1  # nothing committed
+
+
 def test_errors_do_not_close_the_stream(client: TestClient) -> None:
     sid = create(client)
     with client.websocket_connect(f"/v1/sessions/{sid}/stream") as ws:
