@@ -137,12 +137,18 @@ class _RedisStreamLease:
         self.claim = ("", "")  # (key, token) of this stream's claim, once made
         self.stale = False  # a write failed: the session in memory is ahead of what was stored
 
+    async def current(self) -> Session:
+        """The session as the stream goes on from it (under :attr:`lock`): after a refused
+        write, what Redis holds; the refused change is dropped."""
+        if self.stale:
+            self.session = await self.store._load(self.session.id, self.owner)
+            self.committed, self.pending, self.stale = self.session.version, 0, False
+        return self.session
+
     @contextlib.asynccontextmanager
     async def turn(self) -> AsyncIterator[Session]:
         async with self.lock:
-            if self.stale:  # what was refused is dropped: go on from what Redis holds
-                self.session = await self.store._load(self.session.id, self.owner)
-                self.committed, self.pending, self.stale = self.session.version, 0, False
+            await self.current()
             yield self.session
             self.session.touched = time.time()
             if self.session.version != self.committed:
@@ -203,6 +209,8 @@ class RedisStore:
         self._commit = self.redis.register_script(_COMMIT)
         # one local lock per session: requests of this replica take turns
         self._locks: weakref.WeakValueDictionary[str, asyncio.Lock] = weakref.WeakValueDictionary()
+        # the sessions a stream of this replica holds in memory: requests here use them
+        self._streams: dict[str, _RedisStreamLease] = {}
 
     def _key(self, session_id: str) -> str:
         return f"{self.prefix}:session:{session_id}"
@@ -298,13 +306,38 @@ class RedisStore:
 
     @contextlib.asynccontextmanager
     async def lease(self, session_id: str, owner: str | None) -> AsyncIterator[Session]:
+        """The session, exclusively on this replica, committed at exit.
+
+        While a stream of this replica holds the session, a request uses the stream's copy
+        (as the in-memory store shares its one object): the stream sees the change at its
+        next frame instead of finding Redis moved on under it (409).  A request refused
+        (the block raises) changed nothing, and the exact copy stays this replica's.
+        """
         async with self.lock_for(session_id):
-            session = await self._load(session_id, owner)
-            expected = session.version
-            yield session
+            held = self._streams.get(session_id)
+            if held is not None and held.owner != owner:
+                held = None  # another owner's id: not found, as _load says
+            session = (
+                await held.current() if held is not None else await self._load(session_id, owner)
+            )
+            expected = session.version if held is None else held.committed
+            try:
+                yield session
+            except BaseException:
+                if held is None and session.version == expected:
+                    self._keep_exact(session)  # refused: nothing changed
+                raise
             session.touched = time.time()
-            await self.commit(session, expected)
-            self._keep_exact(session)
+            try:
+                await self.commit(session, expected)
+            except BaseException:
+                if held is not None:  # the stream's copy is ahead of Redis: it reloads
+                    held.stale = True
+                raise
+            if held is None:
+                self._keep_exact(session)
+            else:  # the stream's pending frames went with it
+                held.committed, held.pending = session.version, 0
 
     @contextlib.asynccontextmanager
     async def stream(
@@ -317,12 +350,18 @@ class RedisStore:
         keeper = asyncio.create_task(self._keep_claim(claim, token, ttl_ms))
         held = _RedisStreamLease(self, session, owner, commit_every)
         held.claim = (claim, token)
+        self._streams[session_id] = held  # a newer stream here replaces it
         try:
             yield held
         finally:
             keeper.cancel()
             with contextlib.suppress(ServiceError):
                 await held.flush()
+            if self._streams.get(session_id) is held:
+                del self._streams[session_id]
+                current = held.session
+                if not held.stale and not held.pending and current.version == held.committed:
+                    self._keep_exact(current)  # what Redis holds, exactly: go on from it
             with contextlib.suppress(ServiceError, asyncio.CancelledError):
                 await self._call(partial(self._renew, keys=[claim], args=[token, 0]))
 

@@ -132,3 +132,69 @@ async def test_the_exact_copies_are_bounded(redis_server: RedisServer) -> None:
         async for key in store.redis.scan_iter(match=f"{prefix}:*"):
             await store.redis.delete(key)
         await store.close()
+
+
+async def test_a_stream_leaves_the_exact_copy_to_the_next_request(
+    replicas: tuple[RedisStore, RedisStore],
+) -> None:
+    """Frames streamed, then sent one by one on the same replica: exact throughout."""
+    store, _ = replicas
+    frames = video(8)
+    alone = new_session()
+    stored = new_session()
+    await store.add(stored)
+    async with store.stream(stored.id, None) as held:
+        for frame in frames[:4]:
+            expected = alone.track(frame)["nodes"]
+            async with held.turn() as session:
+                assert session.track(frame)["nodes"] == expected
+    for frame in frames[4:]:
+        expected = alone.track(frame)["nodes"]
+        async with store.lease(stored.id, None) as session:
+            assert session.track(frame)["nodes"] == expected  # not the compact record's
+
+
+async def test_a_refused_request_keeps_the_exact_copy(
+    replicas: tuple[RedisStore, RedisStore],
+) -> None:
+    """A request that fails changes nothing: neither the session nor how exactly it goes on."""
+    store, _ = replicas
+    frames = video(6)
+    alone = new_session()
+    stored = new_session()
+    await store.add(stored)
+    for i, frame in enumerate(frames):
+        expected = alone.track(frame)["nodes"]
+        if i == 3:
+            with pytest.raises(ValueError, match="refused"):
+                async with store.lease(stored.id, None):
+                    raise ValueError("refused")  # as a frame that cannot be decoded
+        async with store.lease(stored.id, None) as session:
+            assert session.track(frame)["nodes"] == expected
+
+
+async def test_a_request_during_a_stream_on_its_replica_is_the_streams_next_state(
+    replicas: tuple[RedisStore, RedisStore],
+) -> None:
+    """Forces sent by REST while a stream of the same replica is open: the stream's next
+    frame goes on from them, as with the in-memory store, not a 409."""
+    store, _ = replicas
+    frames = video(4)
+    alone = new_session()
+    stored = new_session()
+    await store.add(stored)
+    push = [(0.5, -0.25)] * 128
+    async with store.stream(stored.id, None, commit_every=2) as held:
+        alone.track(frames[0])
+        async with held.turn() as session:
+            session.track(frames[0])
+        alone.apply_forces(push)
+        async with store.lease(stored.id, None) as session:
+            session.apply_forces(push)
+        for frame in frames[1:]:
+            expected = alone.track(frame)["nodes"]
+            async with held.turn() as session:
+                assert session.track(frame)["nodes"] == expected
+    async with store.lease(stored.id, None) as session:
+        assert session.version == alone.version
+        assert session.nodes.tolist() == alone.nodes.tolist()
