@@ -171,9 +171,14 @@ class Silhouette:
         cls, contours: Sequence[NDArray[np.float64]], shape: tuple[int, int]
     ) -> Silhouette | None:
         """The silhouette of closed ``[x, y]`` contours (an object's pieces) in a frame of
-        ``shape`` (height, width); None when it misses the frame."""
+        ``shape`` (height, width); None when it misses the frame, or none of its nodes lies
+        in it: a contour around the whole frame shows none of its boundary, and its tracker
+        reports it lost (confidence 0), not in front of every other object."""
         points = np.vstack(contours)
         h, w = shape
+        x, y = points[:, 0], points[:, 1]
+        if not np.any((x >= 0) & (y >= 0) & (x < w) & (y < h)):
+            return None
         x0, y0 = np.clip(np.floor(points.min(axis=0)).astype(int) - RIM, 0, [w, h])
         x1, y1 = np.clip(np.ceil(points.max(axis=0)).astype(int) + RIM + 1, 0, [w, h])
         if x1 <= x0 or y1 <= y0:

@@ -259,3 +259,24 @@ def test_a_prepared_frame_that_is_not_one_is_refused(image: np.ndarray, grey: np
     with pytest.raises(ValueError, match="step_prepared"):
         tracker.step_prepared(image, grey)
     assert tracker.frame_index == -1  # nothing moved
+
+
+def test_an_object_around_the_whole_frame_hides_no_other() -> None:
+    """A contour with no node in the frame is reported lost; it is in front of nothing,
+    and the other objects track as if it were not there."""
+    crowd = make_crowd(seed=1, count=3, length=12, size=(120, 160))
+    starts = {k: mask_to_contour(crowd.masks[k][0], 32) for k in range(3)}
+
+    def last(extra: dict[int, Any]) -> dict[Any, ObjectResult]:
+        tracker = ObjectsTracker({**starts, **extra})
+        results: list[ObjectResult] = []
+        for frame in crowd.frames:
+            results = tracker.step(frame)
+        return {r.id: r for r in results}
+
+    alone = last({})
+    around = last({9: circle_nodes((80.0, 60.0), 400.0, 16)})
+    assert around[9].status == "lost"
+    for key in starts:
+        assert around[key].behind == alone[key].behind
+        assert np.array_equal(around[key].contours[0], alone[key].contours[0])
