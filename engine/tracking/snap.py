@@ -98,6 +98,10 @@ cover (:func:`_motion_odds`) then took the thirty to 0.802 and the extra pixels 
 MOTION_NODES = 128
 """Nodes of the colour cut's contour that the object's motion is measured on (as the
 tracker's default contour)."""
+DRAWN_UP_TO = 2**26
+"""Largest centre coordinate or semi-axis (pixels) of an ellipse OpenCV draws: with its 4
+fractional bits, 16 times this stays well inside the int32 it takes.  A larger one (a box
+of 10^9 px around the frame) is filled from its equation instead."""
 
 
 def _box_of(
@@ -243,6 +247,10 @@ def _ellipse(shape: tuple[int, int], box: tuple[float, ...]) -> NDArray[np.uint8
     x0, y0, x1, y1 = box
     centre = ((x0 + x1) / 2 - 0.5, (y0 + y1) / 2 - 0.5)
     axes = (max((x1 - x0) / 2, 0.5), max((y1 - y0) / 2, 0.5))
+    if max(abs(centre[0]), abs(centre[1]), *axes) > DRAWN_UP_TO:
+        ys, xs = np.ogrid[: shape[0], : shape[1]]
+        dx, dy = (xs - centre[0]) / axes[0], (ys - centre[1]) / axes[1]
+        return np.asarray(dx * dx + dy * dy <= 1.0, np.uint8)
     mask = np.zeros(shape, np.uint8)
     shift = 4  # sub-pixel centre and axes
     cv2.ellipse(

@@ -67,6 +67,15 @@ def test_a_box_on_a_grey_frame_and_one_reaching_past_the_edges() -> None:
     assert past.any()
 
 
+@pytest.mark.parametrize("box", [(-1e9, -1e9, 1e9, 1e9), (0, 0, 1e300, 1e300)])
+def test_a_box_far_beyond_the_frame_still_gives_an_answer(box: tuple[float, ...]) -> None:
+    """Past what OpenCV can draw (its coordinates are int32 sixteenths): the frame, not an
+    OpenCV error."""
+    found = snap(two_colour_frame(CENTRE, RADIUS), box)
+    assert found.shape == (120, 160)
+    assert found.all()
+
+
 def test_a_featureless_box_still_gives_a_contour_to_start_from() -> None:
     flat = np.full((100, 100, 3), 128, np.uint8)
     found = snap(flat, (20, 30, 60, 70))
