@@ -38,6 +38,8 @@ def as_forces(forces: Any, closed: bool) -> tuple[NDArray[np.float64], bool]:
     batched : bool
         Whether the input had a batch axis.
     """
+    if np.iscomplexobj(forces):  # converting would drop the imaginary parts
+        raise ValueError("forces must be real numbers; got complex ones")
     try:
         arr = np.asarray(forces, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -66,11 +68,30 @@ def raise_non_finite(forces: NDArray[np.float64]) -> None:
         )
 
 
+def _real(name: str, value: Any) -> float:
+    """``value`` as a float: a real number, not a bool (ValueError otherwise, and for an
+    integer too large for a float, rather than an OverflowError)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a real number; got {value!r}")
+    try:
+        return float(value)
+    except OverflowError:
+        raise ValueError(
+            f"{name} must be finite; got an integer of {len(str(value))} digits"
+        ) from None
+
+
+def as_closed(closed: Any) -> bool:
+    """Validate the chain's kind: True (a ring) or False (a line), not a string or a number
+    (``bool("False")`` is true)."""
+    if not isinstance(closed, bool | np.bool_):
+        raise ValueError(f"closed must be True or False; got {closed!r}")
+    return bool(closed)
+
+
 def as_stiffness(stiffness: Any) -> float:
     """Validate ``a = k/m``: a finite real number > 0."""
-    if isinstance(stiffness, bool) or not isinstance(stiffness, numbers.Real):
-        raise ValueError(f"stiffness must be a real number; got {stiffness!r}")
-    a = float(stiffness)
+    a = _real("stiffness", stiffness)
     if not math.isfinite(a) or a <= 0.0:
         raise ValueError(f"stiffness must be finite and > 0; got {a}")
     return a
@@ -89,9 +110,7 @@ def as_tol(tol: Any, method: str) -> float | None:
         return None
     if method != "efdmt":
         raise ValueError(f"tol applies only to method='efdmt'; got method={method!r}")
-    if isinstance(tol, bool) or not isinstance(tol, numbers.Real):
-        raise ValueError(f"tol must be a real number; got {tol!r}")
-    t = float(tol)
+    t = _real("tol", tol)
     if not math.isfinite(t) or t <= 0.0:
         raise ValueError(f"tol must be finite and > 0; got {t}")
     return t
@@ -99,9 +118,7 @@ def as_tol(tol: Any, method: str) -> float | None:
 
 def as_positive(name: str, value: Any, *, allow_zero: bool = False) -> float:
     """Validate a finite real parameter that must be > 0 (or >= 0)."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a real number; got {value!r}")
-    v = float(value)
+    v = _real(name, value)
     ok = v >= 0.0 if allow_zero else v > 0.0
     if not math.isfinite(v) or not ok:
         bound = ">= 0" if allow_zero else "> 0"

@@ -8,7 +8,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from engine.physics._validation import as_method, as_positive, as_stiffness, as_tol, min_nodes
+from engine.physics._validation import (
+    as_closed,
+    as_method,
+    as_positive,
+    as_stiffness,
+    as_tol,
+    min_nodes,
+)
 from engine.physics.deform import deform
 
 __all__ = ["Chain", "ChainState"]
@@ -83,7 +90,8 @@ class Chain:
             rest = np.array(self.rest, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"rest nodes must be an array of real numbers: {exc}") from None
-        need = min_nodes(bool(self.closed))
+        closed = as_closed(self.closed)
+        need = min_nodes(closed)
         if rest.ndim != 2 or rest.shape[1] != 2 or rest.shape[0] < need:
             raise ValueError(
                 f"rest nodes must have shape (N, 2) with N >= {need}; got {rest.shape}"
@@ -93,7 +101,7 @@ class Chain:
         set_ = object.__setattr__
         set_(self, "rest", _frozen(rest))
         set_(self, "stiffness", as_stiffness(self.stiffness))
-        set_(self, "closed", bool(self.closed))
+        set_(self, "closed", closed)
         set_(self, "method", as_method(self.method))
         set_(self, "tol", as_tol(self.tol, self.method))
         set_(self, "mass", as_positive("mass", self.mass, allow_zero=True))

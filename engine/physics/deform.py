@@ -9,6 +9,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from engine.physics._validation import (
     METHODS,
+    as_closed,
     as_forces,
     as_method,
     as_stiffness,
@@ -69,8 +70,10 @@ def deform(
         ``[x, y]`` in pixels (x = column, y = row, as in OpenCV).
     stiffness : float
         ``a = k/m`` > 0.  Large: the contour moves like a solid; small: like an
-        elastic band.  Every method except ``"efdmt"`` is exact to rounding
-        for a in [1e-6, 1e6] and any N.
+        elastic band.  ``"exact"``, ``"efdm"`` and ``"dmma"`` are exact to rounding
+        for a in [1e-6, 1e6] and any N; ``"efdmt"`` and ``"dmmat"`` are truncated
+        (``"dmmat"`` by 0.05 to 0.9 of the displacement, relative, at N = 64, the
+        more the softer the chain).
     closed : bool, default True
         Closed ring (N >= 3) or open line with free ends (N >= 2).
     method : {"exact", "efdm", "efdmt", "dmma", "dmmat"}, default "exact"
@@ -110,7 +113,7 @@ def deform(
     a = as_stiffness(stiffness)
     name = as_method(method)
     t = as_tol(tol, name)
-    closed = bool(closed)
+    closed = as_closed(closed)
     F, batched = as_forces(forces, closed)
     if F.shape[0] == 0:
         U = np.zeros_like(F)

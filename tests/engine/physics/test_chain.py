@@ -97,6 +97,9 @@ def test_no_force_from_rest_stays_at_rest() -> None:
         ({"mass": -1.0}, "mass"),
         ({"damping": float("inf")}, "damping"),
         ({"dt": 0.0}, "dt"),
+        ({"stiffness": 10**400}, "stiffness must be finite"),
+        ({"mass": 10**400}, "mass must be finite"),
+        ({"closed": "False"}, "closed must be True or False"),
     ],
 )
 def test_bad_parameters(kwargs: dict[str, object], message: str) -> None:

@@ -126,6 +126,12 @@ BAD_INPUTS: list[tuple[object, dict[str, object], str]] = [
     (np.ones((4, 2)), {"method": "efdmt", "tol": -1e-3}, "tol"),
     (np.ones((4, 2)), {"method": "efdmt", "tol": float("nan")}, "tol"),
     (np.ones((4, 2)), {"method": "exact", "tol": 1e-6}, "only to method='efdmt'"),
+    (np.ones((4, 2)), {"stiffness": 10**400}, "stiffness must be finite"),
+    (np.ones((4, 2)), {"method": "efdmt", "tol": 10**400}, "tol must be finite"),
+    (np.ones((4, 2)) * (1 + 2j), {}, "complex"),
+    ([[1 + 1j, 0.0]] * 4, {}, "complex"),
+    (np.ones((4, 2)), {"closed": "False"}, "closed must be True or False"),
+    (np.ones((4, 2)), {"closed": 1}, "closed must be True or False"),
 ]
 
 
