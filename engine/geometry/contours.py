@@ -6,6 +6,7 @@ pixel's centre has integer coordinates.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import cv2
@@ -48,6 +49,16 @@ def as_nodes(nodes: ArrayLike, *, min_count: int = 3) -> Nodes:
     return arr
 
 
+def _count(count: Any, least: int) -> int:
+    """``count`` as an int of at least ``least``: a whole number (numpy's too), not a bool or
+    a float; ValueError otherwise."""
+    if isinstance(count, bool) or not isinstance(count, int | np.integer):
+        raise ValueError(f"count must be a whole number; got {count!r}")
+    if count < least:
+        raise ValueError(f"count must be at least {least}; got {count}")
+    return int(count)
+
+
 def circle_nodes(center: ArrayLike, radius: float, count: int) -> Nodes:
     """``count`` nodes evenly spaced on a circle, counter-clockwise on screen.
 
@@ -61,8 +72,11 @@ def circle_nodes(center: ArrayLike, radius: float, count: int) -> Nodes:
         Number of nodes (>= 3).
     """
     cx, cy = (float(v) for v in np.asarray(center, dtype=np.float64).reshape(2))
-    if not radius > 0 or count < 3:
-        raise ValueError(f"need radius > 0 and count >= 3; got {radius}, {count}")
+    count = _count(count, 3)
+    if not (math.isfinite(cx) and math.isfinite(cy)):
+        raise ValueError(f"center must be finite; got {[cx, cy]}")
+    if not (0 < radius < math.inf):
+        raise ValueError(f"radius must be finite and > 0; got {radius}")
     t = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
     return np.stack([cx + radius * np.cos(t), cy - radius * np.sin(t)], axis=1)
 
@@ -81,6 +95,7 @@ def box_outline(box: ArrayLike, count: int) -> Nodes:
         Unless x1 > x0 and y1 > y0, all finite, and ``count`` >= 3.
     """
     x0, y0, x1, y1 = (float(v) for v in np.asarray(box, dtype=np.float64).reshape(4))
+    count = _count(count, 3)
     if not (np.isfinite([x0, y0, x1, y1]).all() and x1 > x0 and y1 > y0):
         raise ValueError("box must be finite [x0, y0, x1, y1] with x1 > x0, y1 > y0")
     right, bottom = x1 - 1.0, y1 - 1.0
@@ -105,6 +120,7 @@ def resample(nodes: Nodes, count: int, *, closed: bool = True) -> Nodes:
     closed : bool
         Whether the last node joins the first.
     """
+    count = _count(count, 1)
     points = np.ascontiguousarray(nodes, dtype=np.float64)
     if points.ndim == 2 and len(points) >= 2 and np.isfinite(points).all():
         from engine.geometry._kernels import resample_polyline
@@ -122,7 +138,10 @@ def resample(nodes: Nodes, count: int, *, closed: bool = True) -> Nodes:
 
 
 def polygon_area(nodes: Nodes) -> float:
-    """Signed area (shoelace); positive when counter-clockwise in x-right, y-up axes."""
+    """Signed area (shoelace); positive when counter-clockwise in x-right, y-up axes
+    (0 for no nodes)."""
+    if len(nodes) == 0:
+        return 0.0
     x, y = nodes[:, 0], nodes[:, 1]
     inner = float(np.dot(x[:-1], y[1:]) - np.dot(y[:-1], x[1:]))
     return 0.5 * (inner + float(x[-1] * y[0] - y[-1] * x[0]))
@@ -262,6 +281,7 @@ def mask_to_contour(mask: ArrayLike, count: int) -> Nodes:
     m = np.asarray(mask)
     if m.ndim != 2:
         raise ValueError(f"mask must be two-dimensional; got shape {m.shape}")
+    count = _count(count, 3)
     largest = max(_outer_contours(m), key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
     if len(largest) < 3:
         raise ValueError("mask's object is too small for a contour")
@@ -322,8 +342,7 @@ def mask_to_contours(mask: ArrayLike, count: int, *, min_area: float = 0.0) -> l
     m = np.asarray(mask)
     if m.ndim != 2:
         raise ValueError(f"mask must be two-dimensional; got shape {m.shape}")
-    if count < 3:
-        raise ValueError(f"count must be at least 3; got {count}")
+    count = _count(count, 3)
     found = _outer_contours(m)
     largest = max(range(len(found)), key=lambda i: cv2.contourArea(found[i]))
     if len(found[largest]) < 3:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -14,10 +15,12 @@ from numpy.typing import NDArray
 from engine.geometry import (
     as_nodes,
     bounding_box,
+    box_outline,
     circle_nodes,
     contour_to_mask,
     mask_iou,
     mask_to_contour,
+    mask_to_contours,
     perimeter,
     polygon_area,
     resample,
@@ -60,10 +63,43 @@ def test_circle_nodes_run_counter_clockwise_on_screen() -> None:
     assert polygon_area(nodes) == pytest.approx(-expected)
 
 
-@pytest.mark.parametrize(("radius", "count"), [(0.0, 8), (-1.0, 8), (math.nan, 8), (5.0, 2)])
-def test_circle_nodes_rejects_bad_arguments(radius: float, count: int) -> None:
-    with pytest.raises(ValueError, match="radius"):
-        circle_nodes((0.0, 0.0), radius, count)
+@pytest.mark.parametrize(
+    ("center", "radius", "count", "message"),
+    [
+        ((0.0, 0.0), 0.0, 8, "radius"),
+        ((0.0, 0.0), -1.0, 8, "radius"),
+        ((0.0, 0.0), math.nan, 8, "radius"),
+        ((0.0, 0.0), math.inf, 8, "radius"),
+        ((math.nan, 0.0), 5.0, 8, "center"),
+        ((0.0, 0.0), 5.0, 2, "at least 3"),
+        ((0.0, 0.0), 5.0, 3.7, "whole number"),
+    ],
+)
+def test_circle_nodes_rejects_bad_arguments(
+    center: tuple[float, float], radius: float, count: int, message: str
+) -> None:
+    with pytest.raises(ValueError, match=message):
+        circle_nodes(center, radius, count)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: resample(circle_nodes((0.0, 0.0), 5.0, 8), 2.5), "whole number"),
+        (lambda: resample(circle_nodes((0.0, 0.0), 5.0, 8), 0), "at least 1"),
+        (lambda: mask_to_contour(np.pad(np.ones((5, 5)), 3), 2), "at least 3"),
+        (lambda: mask_to_contours(np.pad(np.ones((5, 5)), 3), 2.5), "whole number"),
+        (lambda: box_outline([0, 0, 5, 5], 2), "at least 3"),
+    ],
+)
+def test_node_counts_are_whole_numbers_checked_before_use(make: Any, message: str) -> None:
+    """A count the kernels cannot take is a ValueError, not a numba typing error."""
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_the_area_of_no_nodes_is_nought() -> None:
+    assert polygon_area(np.zeros((0, 2))) == 0.0
 
 
 # --- resample --------------------------------------------------------------------------------
