@@ -15,6 +15,8 @@ Definitions follow the DAVIS evaluation toolkit (``davis2017-evaluation``):
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -64,11 +66,26 @@ def boundary_measure(
     prediction, truth : array_like
         H x W masks, non-zero = object.
     tolerance : float
-        Below 1: a share of the image diagonal; from 1 on: pixels.
+        Below 1: a share of the image diagonal, rounded up to whole pixels (DAVIS's 0.008,
+        the default); from 1 on: pixels, the disk of all pixels within that distance (for
+        a fraction, the DAVIS toolkit's ``skimage.morphology.disk`` makes a kernel of even
+        side instead).  A reach beyond the diagonal is the diagonal: every boundary pixel
+        is then near every other.
+
+    Raises
+    ------
+    ValueError
+        If the masks differ in shape, or ``tolerance`` is not a finite number >= 0.
     """
+    if isinstance(tolerance, bool) or not isinstance(tolerance, numbers.Real):
+        raise ValueError(f"tolerance must be a number; got {tolerance!r}")
+    if not 0 <= tolerance < math.inf:
+        raise ValueError(f"tolerance must be finite and >= 0; got {tolerance}")
     s, g = _binary(prediction), _binary(truth)
     _same_shape(s, g)
-    reach = tolerance if tolerance >= 1 else float(np.ceil(tolerance * np.hypot(*s.shape)))
+    diagonal = float(np.hypot(*s.shape))
+    reach = tolerance if tolerance >= 1 else float(np.ceil(tolerance * diagonal))
+    reach = min(reach, float(np.ceil(diagonal)))
     fg, gt = boundary_map(s), boundary_map(g)
     disk = _disk(reach)
     fg_near = cv2.dilate(fg.astype(np.uint8), disk) > 0

@@ -84,6 +84,20 @@ def test_a_shift_within_the_tolerance_keeps_f_at_one() -> None:
     assert boundary_measure(a, square((480, 854), 320, 200, 80)) < 0.8
 
 
+@pytest.mark.parametrize("tolerance", [-0.01, -3.0, float("nan"), float("inf"), "8", True])
+def test_a_tolerance_that_is_no_distance_is_refused(tolerance: object) -> None:
+    mask = square((40, 40), 10, 10, 10)
+    with pytest.raises(ValueError, match="tolerance"):
+        boundary_measure(mask, mask, tolerance)  # type: ignore[arg-type]
+
+
+def test_a_tolerance_beyond_the_frame_is_the_whole_frame() -> None:
+    """Any two boundaries are within 10^9 px of each other: F is 1, no 2-billion-px disk."""
+    a, b = square((40, 40), 5, 5, 5), square((40, 40), 30, 30, 5)
+    assert boundary_measure(a, b, 1e9) == 1.0
+    assert boundary_measure(a, b) < 1.0
+
+
 def test_empty_masks() -> None:
     empty, some = np.zeros((20, 20)), square((20, 20), 5, 5, 5)
     assert (region_similarity(empty, empty), boundary_measure(empty, empty)) == (1.0, 1.0)
