@@ -28,6 +28,7 @@ from engine.tracking._state_codec import (
 )
 from engine.tracking.appearance import LEGACY_COLOUR_BITS
 from engine.tracking.lighting import Lighting
+from engine.tracking.looks import Look
 from engine.tracking.memory import Memory
 from engine.tracking.working import working_scale
 
@@ -77,6 +78,12 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
         if previous is None or not tracker.options.lighting
         else tracker._lighting.to_state(compact=compact),
     }
+    if previous is not None:  # the kind of frame the stages learnt from, and the other's look
+        aside = tracker._aside
+        state["look"] = {
+            "grey": tracker._look_grey,
+            "aside": None if aside is None else aside.to_state(compact),
+        }
     if previous is not None and compact:
         search = state["search"]  # the shape searched for, to a hundredth of a pixel
         search["shape"] = np.round(tracker._memory.shape, 2).tolist()
@@ -154,6 +161,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
             lighting = state.get("lighting")
             if lighting is not None and tracker.options.lighting:
                 tracker._lighting = Lighting.from_state(lighting)
+            _restore_look(tracker, state.get("look"))
             tracker._previous = (
                 unpack_compact_frame(previous)
                 if isinstance(previous, Mapping)
@@ -172,6 +180,24 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
     ) as exc:
         raise ValueError(f"malformed tracker state: {exc}") from None
     return tracker
+
+
+def _restore_look(tracker: Tracker, look: object) -> None:
+    """The kind of frame the restored stages learnt from and the other kind's look
+    (:mod:`engine.tracking.looks`); a state written before the looks has neither, and its
+    next frame sets the kind."""
+    if look is None:
+        return
+    if not isinstance(look, Mapping) or not isinstance(look.get("grey"), bool | None):
+        raise ValueError("look must be a dict whose 'grey' is true, false or null")
+    tracker._look_grey = look["grey"]
+    aside = look.get("aside")
+    if aside is not None:
+        tracker._aside = Look.from_state(
+            aside, tracker.appearance, tracker.cues, tracker.segmentation
+        )
+        if tracker._aside.grey == tracker._look_grey:
+            raise ValueError("the look put aside must be of the other kind of frame")
 
 
 def _regrid(tracker: Tracker, frame_shape: object) -> None:

@@ -103,6 +103,13 @@ class Lighting:
         self._sample = _grid_sample(image)
         self.learn(image, nodes)
 
+    def resume(self, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> None:
+        """Go on from this frame (``nodes``: the contour on it) after frames of another
+        kind (:mod:`engine.tracking.looks`): the gains are kept, the frame and the object's
+        colours taken here are what the next frame is compared with."""
+        self._sample = _grid_sample(image)
+        self.learn(image, nodes)
+
     @staticmethod
     def whole(
         previous: NDArray[np.uint8] | None, image: NDArray[np.uint8]

@@ -59,6 +59,7 @@ from engine.tracking.covering import cover_maps, covered_share
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.holding import carry, carry_by_shape, hold_factors, side_contrast
 from engine.tracking.lighting import Lighting
+from engine.tracking.looks import Look
 from engine.tracking.maps import roi_box
 from engine.tracking.memory import Memory
 from engine.tracking.motion_contrast import motion_ratio, with_motion
@@ -243,6 +244,9 @@ class Tracker:
         self.frame_index = -1
         self._memory = Memory.fresh(self._nodes)
         self._lighting = Lighting()
+        # the kind of frame (grey or not) the stages learnt from, and the other kind's look
+        self._look_grey: bool | None = None
+        self._aside: Look | None = None
         self._evidence: Evidence | None = None
         self._unconfirmed = False
 
@@ -406,12 +410,13 @@ class Tracker:
                 shared = None
             if shared is not None and not shared.applies_to(self._previous, grey):
                 shared = None
-            textured = self.options.grey_texture and is_grey(image)
+            grey_frame = is_grey(image)
+            textured = self.options.grey_texture and grey_frame
             if textured:  # the colour models read texture, the confidence reads it so
                 image = texture_image(grey)
                 if shared is not None:  # the frame's light was measured on its grey
                     shared = dataclasses.replace(shared, light=None)
-            return self._step(image, grey, Crowd(covered, shared), textured)
+            return self._step(image, grey, Crowd(covered, shared), textured, grey_frame)
 
     def _step(
         self,
@@ -419,13 +424,14 @@ class Tracker:
         grey: NDArray[np.uint8],
         crowd: Crowd,
         textured: bool,
+        grey_frame: bool,
     ) -> TrackResult:
         self.frame_index += 1
         self._evidence, self._unconfirmed = None, False
         if min(grey.shape) < MIN_SIDE:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
-            return self._start(image, grey)
+            return self._start(image, grey, grey_frame)
         raw = image
         # the crowd's covered pixels: read by the motion on the previous frame and by
         # the cue maps on this one (the objects in front, where they were and are)
@@ -437,6 +443,11 @@ class Tracker:
             object_weight=self.cues.object_weight,
             **crowd.motion_keywords(),
         )
+        if self._look_grey is not None and grey_frame != self._look_grey:
+            first = self._change_look(image, grey, prediction, grey_frame)
+            if first is not None:
+                return first
+        self._look_grey = grey_frame  # (a state written before the looks: from now on)
         if self.options.lighting:  # the frame in the first frame's light
             light = None if crowd.shared is None else crowd.shared.light
             whole = None if light is None else (light.sample, light.step)
@@ -593,9 +604,69 @@ class Tracker:
         matrix[:, 2] += found.mean(axis=0) - prediction.nodes.mean(axis=0)
         return Prediction(found, found, matrix, prediction.support)
 
-    def _start(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> TrackResult:
+    def _change_look(
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        prediction: Prediction,
+        grey_frame: bool,
+    ) -> TrackResult | None:
+        """The first frame of another kind (:mod:`engine.tracking.looks`): the look in use is
+        put aside, and the other kind's taken up.  One put aside before is tracked with as
+        usual (None returned: the step goes on); the first time, it is learnt on the
+        predicted contour, which is then this frame's result, reported just below
+        ``tracking`` (what was learnt from it cannot judge it)."""
+        nodes, memory = prediction.nodes, self._memory
+        leaving = Look(
+            bool(self._look_grey),
+            self.appearance,
+            self.cues,
+            self.segmentation,
+            self._lighting,
+            memory.usual,
+            memory.usual_count,
+        )
+        back = self._aside if self._aside is not None and self._aside.grey == grey_frame else None
+        if back is not None:  # as it was when the frames last were of this kind
+            self.appearance, self.cues, self.segmentation = (
+                back.appearance,
+                back.cues,
+                back.segmentation,
+            )
+            self._lighting, memory.usual, memory.usual_count = (
+                back.lighting,
+                back.usual,
+                back.usual_count,
+            )
+            if self.options.lighting:
+                self._lighting.resume(image, nodes)
+        else:  # learnt here, as on a track's first frame
+            self.appearance = copy.deepcopy(self.appearance)
+            self.cues = copy.deepcopy(self.cues)
+            self.segmentation = copy.deepcopy(self.segmentation)
+            self.appearance.fit(image, nodes)
+            self._lighting = Lighting()
+            if self.options.lighting:
+                self._lighting.start(image, nodes)
+            memory.usual, memory.usual_count = np.zeros(2), 0
+        # what they remember of the last frame is of the other kind, and elsewhere
+        self.cues.start(image, nodes, self.appearance)
+        self.segmentation.start(image, nodes)
+        self._aside, self._look_grey = leaving, grey_frame
+        if back is not None:
+            return None
+        if memory.outline is not None:
+            memory.outline = follow(memory.outline, prediction.matrix, nodes, memory.hold)
+        self._nodes, self._previous = nodes, grey
+        self._unconfirmed = True
+        return self._result(0, True, UNCONFIRMED if self._visible(nodes, grey) else 0.0)
+
+    def _start(
+        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], grey_frame: bool
+    ) -> TrackResult:
         """The first frame of a track: every stage learns the object anew."""
         self._previous = grey
+        self._look_grey, self._aside = grey_frame, None
         self._forget_search()
         self.motion.reset()
         self.appearance.fit(image, self._nodes)

@@ -1,0 +1,126 @@
+"""engine.tracking.looks: one look per kind of frame, for videos that turn grey or colour."""
+
+from __future__ import annotations
+
+import copy
+import json
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
+from engine.testing.synthetic import make_sequence
+from engine.tracking import Tracker
+
+U8 = NDArray[np.uint8]
+CLIP = make_sequence("clutter", seed=1, length=12, size=(120, 160))
+START = mask_to_contour(CLIP.masks[0], 64)
+
+
+def grey(frame: U8) -> U8:
+    """The frame as a grey camera sends it, decoded to BGR: three equal channels."""
+    return np.asarray(cv2.cvtColor(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR))
+
+
+def ious(frames: list[U8], tracker: Tracker | None = None) -> list[float]:
+    tracker = tracker or Tracker(START)
+    out = []
+    for frame, mask in zip(frames, CLIP.masks, strict=False):
+        nodes = tracker.step(frame).nodes
+        out.append(mask_iou(contour_to_mask(nodes, mask.shape), mask))
+    return out
+
+
+def test_a_camera_turning_grey_is_followed_with_a_look_learnt_in_grey() -> None:
+    """Colour, then grey from the fifth frame (a night mode): before the looks, the colour
+    models read the grey frames' texture channels and J fell to 0.64 by the last frame."""
+    frames = list(CLIP.frames[:4]) + [grey(f) for f in CLIP.frames[4:]]
+    assert min(ious(frames)[1:]) > 0.8
+
+
+def test_a_video_fading_in_from_grey_is_followed_in_colour() -> None:
+    """The first frame grey, the rest colour: the colour look is learnt on the second
+    (before, the grey frame's models read colours: J 0.63 by the last frame)."""
+    frames = [grey(CLIP.frames[0]), *CLIP.frames[1:]]
+    assert min(ious(frames)[2:]) > 0.9
+
+
+def test_black_frames_leave_the_colour_look_as_it_was() -> None:
+    """Two black frames (grey: three equal channels) in a colour video: the colour look
+    waits aside and the frames after them track as if there had been none."""
+    frames = list(CLIP.frames)
+    frames[5] = frames[6] = np.zeros_like(frames[5])
+    assert min(ious(frames)[7:]) > 0.9
+
+
+def test_the_results_of_a_switch_frame() -> None:
+    """The first grey frame: the predicted contour, just below tracking; back in colour,
+    the colour look tracks at once."""
+    tracker = Tracker(START)
+    for frame in CLIP.frames[:4]:
+        tracker.step(frame)
+    first_grey = tracker.step(grey(CLIP.frames[4]))
+    assert first_grey.status == "uncertain"
+    assert tracker.unconfirmed
+    tracker.step(grey(CLIP.frames[5]))
+    back = tracker.step(CLIP.frames[6])
+    assert back.status == "tracking"
+
+
+@pytest.mark.parametrize("compact", [False, True])
+def test_a_state_with_a_look_aside_resumes(compact: bool) -> None:
+    """Exactly (or, compact, closely) as the tracker that wrote it, after JSON."""
+    frames = list(CLIP.frames[:4]) + [grey(f) for f in CLIP.frames[4:8]] + list(CLIP.frames[8:])
+    tracker = Tracker(START)
+    for frame in frames[:6]:
+        tracker.step(frame)
+    state = json.loads(json.dumps(tracker.to_state(compact=compact)))
+    assert state["look"]["grey"] is True
+    assert state["look"]["aside"]["grey"] is False
+    resumed = Tracker.from_state(state)
+    for frame in frames[6:]:
+        ours, theirs = tracker.step(frame).nodes, resumed.step(frame).nodes
+        if compact:
+            shape = frame.shape[:2]
+            assert mask_iou(contour_to_mask(ours, shape), contour_to_mask(theirs, shape)) > 0.9
+        else:
+            assert np.array_equal(ours, theirs)
+
+
+def _with_look(look: dict[str, Any]) -> dict[str, Any]:
+    tracker = Tracker(START)
+    for frame in [*CLIP.frames[:3], grey(CLIP.frames[3])]:
+        tracker.step(frame)
+    state = copy.deepcopy(tracker.to_state())
+    state["look"] = look(state["look"]) if callable(look) else look
+    return state
+
+
+@pytest.mark.parametrize(
+    "look",
+    [
+        "grey",
+        {"grey": "yes"},
+        lambda look: {**look, "grey": False},  # the look aside is of the kind in use
+        lambda look: {**look, "aside": {**look["aside"], "usual": [0.5, 0.5]}},
+        lambda look: {**look, "aside": {**look["aside"], "stages": []}},
+    ],
+)
+def test_a_malformed_look_is_refused(look: Any) -> None:
+    with pytest.raises(ValueError, match=r"\S"):
+        Tracker.from_state(_with_look(look))
+
+
+def test_a_state_without_looks_resumes_and_learns_its_kind() -> None:
+    """Written before the looks: the next frame sets the kind, as if it had been so."""
+    tracker = Tracker(START)
+    for frame in CLIP.frames[:3]:
+        tracker.step(frame)
+    state = tracker.to_state()
+    del state["look"]
+    resumed = Tracker.from_state(state)
+    for frame in CLIP.frames[3:6]:
+        assert np.array_equal(tracker.step(frame).nodes, resumed.step(frame).nodes)
