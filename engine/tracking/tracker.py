@@ -443,13 +443,15 @@ class Tracker:
             object_weight=self.cues.object_weight,
             **crowd.motion_keywords(),
         )
-        if self._look_grey is not None and grey_frame != self._look_grey:
+        changed = self._look_grey is not None and grey_frame != self._look_grey
+        if changed:
             first = self._change_look(image, grey, prediction, grey_frame)
             if first is not None:
                 return first
         self._look_grey = grey_frame  # (a state written before the looks: from now on)
         if self.options.lighting:  # the frame in the first frame's light
-            light = None if crowd.shared is None else crowd.shared.light
+            # (not the crowd's step of light from a frame of the other kind)
+            light = None if crowd.shared is None or changed else crowd.shared.light
             whole = None if light is None else (light.sample, light.step)
             image = self._lighting.compensate(raw, prediction.matrix, whole)
         cues = copy.deepcopy(self.cues)  # before this frame, should a search retry it

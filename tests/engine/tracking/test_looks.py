@@ -124,3 +124,21 @@ def test_a_state_without_looks_resumes_and_learns_its_kind() -> None:
     resumed = Tracker.from_state(state)
     for frame in CLIP.frames[3:6]:
         assert np.array_equal(tracker.step(frame).nodes, resumed.step(frame).nodes)
+
+
+def test_several_objects_follow_a_video_that_turns_grey_and_back() -> None:
+    """Each object's tracker changes look; the frame's shared step of light between frames
+    of two kinds is not taken for a change of light."""
+    from engine.testing.crowd import make_crowd
+    from engine.tracking import ObjectsTracker
+
+    crowd = make_crowd(seed=0, length=16)
+    frames = list(crowd.frames)
+    frames[6:10] = [grey(f) for f in frames[6:10]]
+    tracker = ObjectsTracker({k: mask_to_contour(m[0], 64) for k, m in enumerate(crowd.masks)})
+    for i, frame in enumerate(frames):
+        for k, result in enumerate(tracker.step(frame)):  # in the order they were added
+            if i in (9, 15):  # the last grey frame, and back in colour
+                truth = crowd.masks[k][i]
+                mine = contour_to_mask(result.contours[0], truth.shape)
+                assert mask_iou(mine, truth) > 0.9
