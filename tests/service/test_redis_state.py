@@ -51,6 +51,14 @@ def new_session() -> Session:
     return Session.create(spec, None, max_nodes=4096)
 
 
+async def twins(store: RedisStore, count: int) -> tuple[list[NDArray[np.uint8]], Session, Session]:
+    """``count`` frames, a session tracked alone (the in-memory reference) and its twin,
+    added to ``store``."""
+    alone, stored = new_session(), new_session()
+    await store.add(stored)
+    return video(count), alone, stored
+
+
 @pytest.fixture
 async def replicas(redis_server: RedisServer) -> AsyncIterator[tuple[RedisStore, RedisStore]]:
     """Two stores on one Redis under one prefix: two replicas of the service."""
@@ -69,10 +77,7 @@ async def test_one_replica_tracks_exactly_as_in_memory_and_stores_little(
     replicas: tuple[RedisStore, RedisStore],
 ) -> None:
     store, _ = replicas
-    frames = video(8)
-    alone = new_session()
-    stored = new_session()
-    await store.add(stored)
+    frames, alone, stored = await twins(store, 8)
     for frame in frames:
         expected = alone.track(frame)["nodes"]
         async with store.lease(stored.id, None) as session:
@@ -139,10 +144,7 @@ async def test_a_stream_leaves_the_exact_copy_to_the_next_request(
 ) -> None:
     """Frames streamed, then sent one by one on the same replica: exact throughout."""
     store, _ = replicas
-    frames = video(8)
-    alone = new_session()
-    stored = new_session()
-    await store.add(stored)
+    frames, alone, stored = await twins(store, 8)
     async with store.stream(stored.id, None) as held:
         for frame in frames[:4]:
             expected = alone.track(frame)["nodes"]
@@ -159,10 +161,7 @@ async def test_a_refused_request_keeps_the_exact_copy(
 ) -> None:
     """A request that fails changes nothing: neither the session nor how exactly it goes on."""
     store, _ = replicas
-    frames = video(6)
-    alone = new_session()
-    stored = new_session()
-    await store.add(stored)
+    frames, alone, stored = await twins(store, 6)
     for i, frame in enumerate(frames):
         expected = alone.track(frame)["nodes"]
         if i == 3:
@@ -179,10 +178,7 @@ async def test_a_request_during_a_stream_on_its_replica_is_the_streams_next_stat
     """Forces sent by REST while a stream of the same replica is open: the stream's next
     frame goes on from them, as with the in-memory store, not a 409."""
     store, _ = replicas
-    frames = video(4)
-    alone = new_session()
-    stored = new_session()
-    await store.add(stored)
+    frames, alone, stored = await twins(store, 4)
     push = [(0.5, -0.25)] * 128
     async with store.stream(stored.id, None, commit_every=2) as held:
         alone.track(frames[0])
