@@ -161,7 +161,9 @@ def test_what_the_first_frame_refutes_is_a_422_that_changes_nothing(
 def test_an_object_snapped_onto_a_line_is_a_422_that_changes_nothing(client: TestClient) -> None:
     """A box whose snap finds only a one-pixel line (no area to track) refuses the frame
     before any object changed; not a 400 for the image, not half the objects placed."""
-    image = cv2.imdecode(np.frombuffer(disc_frame(160.0, 120.0), np.uint8), cv2.IMREAD_COLOR)
+    decoded = cv2.imdecode(np.frombuffer(disc_frame(160.0, 120.0), np.uint8), cv2.IMREAD_COLOR)
+    assert decoded is not None
+    image = np.ascontiguousarray(decoded)
     cv2.line(image, (20, 20), (140, 20), (0, 0, 255), 1)
     body = cv2.imencode(".png", image)[1].tobytes()
     spec = {"objects": [{"box": BOX}, {"id": "line", "box": [20, 19, 141, 22]}]}

@@ -85,10 +85,10 @@ def test_circle_nodes_rejects_bad_arguments(
 @pytest.mark.parametrize(
     ("make", "message"),
     [
-        (lambda: resample(circle_nodes((0.0, 0.0), 5.0, 8), 2.5), "whole number"),
+        (lambda: resample(circle_nodes((0.0, 0.0), 5.0, 8), 2.5), "whole number"),  # type: ignore[arg-type]
         (lambda: resample(circle_nodes((0.0, 0.0), 5.0, 8), 0), "at least 1"),
         (lambda: mask_to_contour(np.pad(np.ones((5, 5)), 3), 2), "at least 3"),
-        (lambda: mask_to_contours(np.pad(np.ones((5, 5)), 3), 2.5), "whole number"),
+        (lambda: mask_to_contours(np.pad(np.ones((5, 5)), 3), 2.5), "whole number"),  # type: ignore[arg-type]
         (lambda: box_outline([0, 0, 5, 5], 2), "at least 3"),
     ],
 )
