@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "MIN_PIECE_AREA",
     "Box",
+    "any_in_frame",
     "as_nodes",
     "bounding_box",
     "box_outline",
@@ -201,6 +202,15 @@ def nearest(queries: Nodes, points: Nodes) -> NDArray[np.int64]:
         raise ValueError("points is empty: there is no nearest point")
     result: NDArray[np.int64] = find(q, p)
     return result
+
+
+def any_in_frame(nodes: Nodes, shape: tuple[int, ...]) -> bool:
+    """Whether a node of ``nodes`` (``[x, y]``) lies in a frame of ``shape`` (height first):
+    a contour with none in it, beside the frame or around all of it, shows none of its
+    boundary."""
+    h, w = shape[0], shape[1]
+    x, y = nodes[:, 0], nodes[:, 1]
+    return bool(np.any((x >= 0) & (y >= 0) & (x < w) & (y < h)))
 
 
 def bounding_box(

@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask
+from engine.geometry import any_in_frame, contour_to_mask
 from engine.tracking.maps import Maps
 
 __all__ = [
@@ -176,8 +176,7 @@ class Silhouette:
         reports it lost (confidence 0), not in front of every other object."""
         points = np.vstack(contours)
         h, w = shape
-        x, y = points[:, 0], points[:, 1]
-        if not np.any((x >= 0) & (y >= 0) & (x < w) & (y < h)):
+        if not any_in_frame(points, shape):
             return None
         x0, y0 = np.clip(np.floor(points.min(axis=0)).astype(int) - RIM, 0, [w, h])
         x1, y1 = np.clip(np.ceil(points.max(axis=0)).astype(int) + RIM + 1, 0, [w, h])

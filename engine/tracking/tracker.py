@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from engine.geometry import as_nodes, polygon_area, resample
+from engine.geometry import any_in_frame, as_nodes, polygon_area, resample
 from engine.tracking._frames import as_frame as _as_frame
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._tracker_state import restore, snapshot
@@ -699,9 +699,7 @@ class Tracker:
     def _visible(nodes: NDArray[np.float64], grey: NDArray[np.uint8]) -> bool:
         """Whether a node of ``nodes`` lies in the frame: a contour with none in it (beside
         the frame, or around all of it) shows none of its boundary."""
-        h, w = grey.shape
-        x, y = nodes[:, 0], nodes[:, 1]
-        return bool(np.any((x >= 0) & (y >= 0) & (x < w) & (y < h)))
+        return any_in_frame(nodes, grey.shape)
 
     # --- serialisation -------------------------------------------------------------
 

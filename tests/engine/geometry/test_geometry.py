@@ -13,6 +13,7 @@ from hypothesis.extra.numpy import arrays
 from numpy.typing import NDArray
 
 from engine.geometry import (
+    any_in_frame,
     as_nodes,
     bounding_box,
     box_outline,
@@ -431,3 +432,10 @@ def test_bounding_box_region_holds_every_node() -> None:
     assert (nodes[:, 1] >= y0).all()
     assert (np.round(nodes[:, 0]) < x1).all()
     assert (np.round(nodes[:, 1]) < y1).all()
+
+
+def test_any_in_frame_asks_for_a_node_inside_not_an_overlap() -> None:
+    """``[x, y]`` against (height, width): a contour around the whole frame has none in it."""
+    assert any_in_frame(np.array([[9.5, 4.0], [20.0, 20.0], [30.0, 4.0]]), (5, 10))
+    assert not any_in_frame(np.array([[10.0, 4.0], [20.0, 20.0], [30.0, 4.0]]), (5, 10))
+    assert not any_in_frame(circle_nodes((5.0, 2.5), 100.0, 16), (5, 10))
