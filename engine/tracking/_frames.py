@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["as_frame", "repeatable_opencv"]
+__all__ = ["as_frame", "check_prepared", "repeatable_opencv"]
 
 
 @contextlib.contextmanager
@@ -47,3 +47,33 @@ def as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
         colour = np.ascontiguousarray(frame[..., :3])
         return colour, np.asarray(cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
     raise ValueError(f"frame must be H x W grey or H x W x 3 BGR; got shape {frame.shape}")
+
+
+def check_prepared(
+    image: NDArray[np.uint8], grey: NDArray[np.uint8], covered: NDArray[np.bool_] | None
+) -> None:
+    """Check a frame as :func:`as_frame` returns it, and the pixels other objects cover.
+
+    Raises
+    ------
+    ValueError
+        If they are not uint8, ``grey`` is not H x W, ``image`` is not that H x W (x 3),
+        or ``covered`` (when given) is not an H x W bool mask.
+    """
+    if (
+        image.dtype != np.uint8
+        or grey.dtype != np.uint8
+        or grey.ndim != 2
+        or image.shape[:2] != grey.shape
+        or image.ndim not in (2, 3)
+        or (image.ndim == 3 and image.shape[2] != 3)
+    ):
+        raise ValueError(
+            "step_prepared takes a uint8 H x W (x 3) image and its H x W grey version; "
+            f"got {image.dtype} {image.shape} and {grey.dtype} {grey.shape}"
+        )
+    if covered is not None and (covered.dtype != np.bool_ or covered.shape != grey.shape):
+        raise ValueError(
+            f"covered must be a bool mask of the frame's size {grey.shape}; "
+            f"got {covered.dtype} {covered.shape}"
+        )

@@ -18,9 +18,10 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,7 +31,10 @@ from engine.tracking.confidence import USUAL_FRAMES
 from engine.tracking.lighting import Lighting
 from engine.tracking.stages import AppearanceModel, BoundaryCues, Segmentation
 
-__all__ = ["Look"]
+if TYPE_CHECKING:
+    from engine.tracking.tracker import Tracker
+
+__all__ = ["Look", "change_look"]
 
 
 @dataclass(slots=True)
@@ -59,6 +63,31 @@ class Look:
     lighting: Lighting
     usual: NDArray[np.float64]
     usual_count: int
+
+    @classmethod
+    def in_use(cls, tracker: Tracker) -> Look:
+        """The look ``tracker`` tracks with: its stages and light as they are (not copies)."""
+        memory = tracker._memory
+        return cls(
+            bool(tracker._look_grey),
+            tracker.appearance,
+            tracker.cues,
+            tracker.segmentation,
+            tracker._lighting,
+            memory.usual,
+            memory.usual_count,
+        )
+
+    def take_up(self, tracker: Tracker) -> None:
+        """Make this the look ``tracker`` tracks with."""
+        tracker.appearance, tracker.cues, tracker.segmentation = (
+            self.appearance,
+            self.cues,
+            self.segmentation,
+        )
+        tracker._lighting = self.lighting
+        tracker._memory.usual, tracker._memory.usual_count = self.usual, self.usual_count
+        tracker._look_grey = self.grey
 
     def to_state(self, compact: bool) -> dict[str, Any]:
         """``{"grey", "stages": {appearance, cues, segmentation}, "lighting", "usual"}``,
@@ -106,3 +135,49 @@ class Look:
             factors(usual[:2], 2),
             frames,
         )
+
+
+def change_look(
+    tracker: Tracker, image: NDArray[np.uint8], nodes: NDArray[np.float64], grey: bool
+) -> bool:
+    """The first frame of another kind: the look in use put aside, the other taken up.
+
+    Parameters
+    ----------
+    tracker : Tracker
+        Whose look changes: its stages, light and usual look are replaced, and the one
+        it tracked with is kept aside.
+    image : numpy.ndarray
+        The frame (its texture, for a grey frame: :mod:`engine.tracking.texture`).
+    nodes : numpy.ndarray
+        (N, 2) the contour the motion predicts on it, ``[x, y]`` pixels.
+    grey : bool
+        The frame's kind.
+
+    Returns
+    -------
+    bool
+        True when the look was taken up as it was put aside (the frame is then tracked
+        with it as usual); False when it was learnt here on ``nodes``, as on a track's
+        first frame: what was learnt from the predicted contour cannot judge it, so that
+        contour is the frame's result.
+    """
+    leaving, aside = Look.in_use(tracker), tracker._aside
+    back = aside is not None and aside.grey == grey
+    if aside is not None and back:  # as it was when the frames last were of this kind
+        aside.take_up(tracker)
+        if tracker.options.lighting:
+            tracker._lighting.resume(image, nodes)
+    else:  # learnt here, as on a track's first frame
+        appearance = copy.deepcopy(tracker.appearance)
+        appearance.fit(image, nodes)
+        lighting = Lighting()
+        if tracker.options.lighting:
+            lighting.start(image, nodes)
+        cues, segmentation = copy.deepcopy(tracker.cues), copy.deepcopy(tracker.segmentation)
+        Look(grey, appearance, cues, segmentation, lighting, np.zeros(2), 0).take_up(tracker)
+    # what they remember of the last frame is of the other kind, and elsewhere
+    tracker.cues.start(image, nodes, tracker.appearance)
+    tracker.segmentation.start(image, nodes)
+    tracker._aside = leaving
+    return back

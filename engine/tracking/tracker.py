@@ -34,42 +34,36 @@ import copy
 import dataclasses
 import functools
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from engine.geometry import any_in_frame, as_nodes, polygon_area, resample
+from engine.tracking._attempt import BEHIND_FROM, track_around
 from engine.tracking._frames import as_frame as _as_frame
+from engine.tracking._frames import check_prepared
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._tracker_state import restore, snapshot
-from engine.tracking.alignment import aligned
 from engine.tracking.appearance import ColourHistogram
-from engine.tracking.background import MEASURE, Background
 from engine.tracking.confidence import (
     UNCONFIRMED,
     Evidence,
-    calibrated,
-    evidence,
-    search_score,
     status_of,
 )
-from engine.tracking.covering import cover_maps, covered_share
+from engine.tracking.covering import covered_share
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.holding import carry, carry_by_shape, hold_factors, side_contrast
 from engine.tracking.lighting import Lighting
-from engine.tracking.looks import Look
+from engine.tracking.looks import Look, change_look
 from engine.tracking.maps import roi_box
 from engine.tracking.memory import Memory
-from engine.tracking.motion_contrast import motion_ratio, with_motion
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.reacquisition import jumped, search_reach, search_shape
-from engine.tracking.refinement import Refinement, refine
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
-from engine.tracking.shape_memory import follow, marks_at, rest_on
+from engine.tracking.shape_memory import follow
 from engine.tracking.shared import Crowd
 from engine.tracking.stages import (
     AppearanceModel,
@@ -114,11 +108,6 @@ shape."""
 SEARCH_UNLESS_COVERED = 0.2
 """An object at least this much hidden by other tracked objects in front is not searched
 for elsewhere: its low score is theirs, and it is known to be behind them."""
-BEHIND_FROM = 0.02
-"""An object this much hidden by other tracked objects in front is behind them for the
-frame: no joint cut (whose smoothness would pull the unseen part in, as a curve shortens
-where nothing holds it), and it learns nothing (the pixels inside its contour are partly
-theirs).  Their rims touching it hide less than this."""
 SEARCH_BELOW = 0.445
 """A frame whose contour's search score (:func:`engine.tracking.confidence.search_score`)
 is below this starts a search, and one at or above it gives the shape to search for
@@ -147,18 +136,6 @@ at 136 nodes, 0.690 -> 0.698).  Not after a re-acquisition in the same absence, 
 contour already is the remembered shape: searching again on probation's frames chained
 jumps (``motorbike`` 0.747 -> 0.700), and after them a validation sequence's
 (``breakdance`` at 128 nodes, 0.358 -> 0.217; :attr:`Memory.reacquired`)."""
-
-
-@dataclass(frozen=True, slots=True)
-class _Attempt:
-    """One way of tracking the frame: the refinement, the final contour, the evidence
-    about it, its confidence (reported) and its score (the search's decisions)."""
-
-    refinement: Refinement
-    nodes: NDArray[np.float64]
-    evidence: Evidence
-    confidence: float
-    score: float
 
 
 class Tracker:
@@ -379,25 +356,9 @@ class Tracker:
             If they are not uint8, ``grey`` is not H x W, ``image`` is not that
             H x W (x 3), or the crowd's ``covered`` is not H x W bool.
         """
-        if (
-            image.dtype != np.uint8
-            or grey.dtype != np.uint8
-            or grey.ndim != 2
-            or image.shape[:2] != grey.shape
-            or image.ndim not in (2, 3)
-            or (image.ndim == 3 and image.shape[2] != 3)
-        ):
-            raise ValueError(
-                "step_prepared takes a uint8 H x W (x 3) image and its H x W grey version; "
-                f"got {image.dtype} {image.shape} and {grey.dtype} {grey.shape}"
-            )
         crowd = crowd or Crowd()
+        check_prepared(image, grey, crowd.covered)
         covered, shared = crowd.covered, crowd.shared
-        if covered is not None and (covered.dtype != np.bool_ or covered.shape != grey.shape):
-            raise ValueError(
-                f"covered must be a bool mask of the frame's size {grey.shape}; "
-                f"got {covered.dtype} {covered.shape}"
-            )
         if covered is not None and not covered.any():
             covered = None  # nothing in front: exactly as a tracker alone
         if grey.shape != self._frame_shape:
@@ -444,10 +405,8 @@ class Tracker:
             **crowd.motion_keywords(),
         )
         changed = self._look_grey is not None and grey_frame != self._look_grey
-        if changed:
-            first = self._change_look(image, grey, prediction, grey_frame)
-            if first is not None:
-                return first
+        if changed and not change_look(self, image, prediction.nodes, grey_frame):
+            return self._predicted(grey, prediction)
         self._look_grey = grey_frame  # (a state written before the looks: from now on)
         if self.options.lighting:  # the frame in the first frame's light
             # (not the crowd's step of light from a frame of the other kind)
@@ -465,8 +424,8 @@ class Tracker:
                     motion = turned(motion, self._nodes, angle)
             memory.outline = follow(memory.outline, motion, prediction.nodes, hold)
         outline, marks = memory.outline, memory.marks
-        attempt = self._attempt(
-            image, grey, prediction, self.cues, hold, crowd, outline, marks, textured=textured
+        attempt = track_around(
+            self, image, grey, prediction, self.cues, hold, crowd, outline, marks, textured=textured
         )
         visible = self._visible(self._nodes, grey)  # where the object was: worth a search
         share = covered_share(crowd.covered, prediction.nodes)
@@ -481,7 +440,9 @@ class Tracker:
             retry = self._search(image, grey, prediction)
             if retry is not None:
                 moved = carry_by_shape(hold, self._nodes, retry.nodes)
-                other = self._attempt(image, grey, retry, cues, moved, crowd, textured=textured)
+                other = track_around(
+                    self, image, grey, retry, cues, moved, crowd, textured=textured
+                )
                 margin = attempt.score + REACQUIRE_MARGIN
                 if other.score >= self.options.reacquire_above and other.score > margin:
                     if memory.outline is not None:  # the remembered outline goes along
@@ -522,76 +483,6 @@ class Tracker:
             self.segmentation.learn(image, self._nodes)
         return self._result(refinement.iterations, refinement.converged, confidence)
 
-    def _attempt(
-        self,
-        image: NDArray[np.uint8],
-        grey: NDArray[np.uint8],
-        prediction: Prediction,
-        cues: BoundaryCues,
-        hold: NDArray[np.float64],
-        crowd: Crowd,
-        outline: NDArray[np.float64] | None = None,
-        marks: NDArray[np.float64] | None = None,
-        *,
-        textured: bool,
-    ) -> _Attempt:
-        """Cue maps, refinement and cut around ``prediction``; the confidence of the result.
-
-        Given the remembered ``outline``, the nodes held on the first frame that show no
-        colour step now are put back on it where they lie outside it
-        (:mod:`engine.tracking.shape_memory`): held as the outline's ``marks`` say where
-        they are given, else as ``hold`` says.  ``textured``: the frame is grey and
-        ``image`` its texture (:mod:`engine.tracking.texture`), which the confidence
-        reads with its grey model (:data:`engine.tracking.confidence.GREY_COEFFICIENTS`).
-        """
-        maps = cues.maps(image, grey, prediction, self.appearance)
-        if maps.in_front:
-            # partly behind something: the flow next to it is the front object's
-            prediction = dataclasses.replace(prediction, nodes=prediction.rigid)
-        guide = maps
-        if self.options.motion_contrast and self._previous is not None:
-            shape = maps.probability.shape
-            args = (maps.origin, shape, self._nodes, prediction.matrix)
-            shared = crowd.shared
-            background: Background = MEASURE if shared is None else shared.background
-            ratio = motion_ratio(self._previous, grey, *args, background=background)
-            if ratio is not None:
-                probability = with_motion(maps.probability, ratio)
-                guide = dataclasses.replace(maps, probability=probability, observed=maps.seen)
-                maps = dataclasses.replace(maps, motion=ratio)
-        guide, maps = cover_maps(guide, crowd.covered), cover_maps(maps, crowd.covered)
-        if self.options.align_prediction:
-            prediction = aligned(prediction, guide)
-        if outline is not None:
-            contrast = side_contrast(maps.probability, maps.origin, prediction.nodes)
-            held = hold if marks is None else marks_at(prediction.nodes, outline, marks)
-            still = held * hold_factors(contrast, self.options.hold_below)
-            prediction = dataclasses.replace(
-                prediction, nodes=rest_on(prediction.nodes, outline, still)
-            )
-        refinement = refine(
-            guide,
-            grey.shape,
-            prediction.nodes,
-            options=self.options,
-            previous_nodes=self._nodes,
-            hold=hold,
-        )
-        nodes = refinement.nodes
-        # behind another object, the cut's smoothness would pull the unseen part in
-        behind = covered_share(crowd.covered, prediction.nodes) >= BEHIND_FROM
-        cut = None
-        if not behind:
-            cut = self.segmentation.segment(image, maps, prediction.nodes, nodes, outline=outline)
-        if cut is not None and valid_contour(cut, grey.shape, self._nodes):
-            nodes = cut
-        found = evidence(maps, nodes, refinement.converged, self._memory.outline)
-        usual_in, usual_out = self._memory.usual_with(found.inside, found.outside)
-        found = dataclasses.replace(
-            found, usual_inside=usual_in, usual_outside=usual_out, grey=textured
-        )
-        return _Attempt(refinement, nodes, found, calibrated(found), search_score(found))
-
     def _search(
         self, image: NDArray[np.uint8], grey: NDArray[np.uint8], prediction: Prediction
     ) -> Prediction | None:
@@ -606,62 +497,18 @@ class Tracker:
         matrix[:, 2] += found.mean(axis=0) - prediction.nodes.mean(axis=0)
         return Prediction(found, found, matrix, prediction.support)
 
-    def _change_look(
-        self,
-        image: NDArray[np.uint8],
-        grey: NDArray[np.uint8],
-        prediction: Prediction,
-        grey_frame: bool,
-    ) -> TrackResult | None:
-        """The first frame of another kind (:mod:`engine.tracking.looks`): the look in use is
-        put aside, and the other kind's taken up.  One put aside before is tracked with as
-        usual (None returned: the step goes on); the first time, it is learnt on the
-        predicted contour, which is then this frame's result, reported just below
-        ``tracking`` (what was learnt from it cannot judge it)."""
-        nodes, memory = prediction.nodes, self._memory
-        leaving = Look(
-            bool(self._look_grey),
-            self.appearance,
-            self.cues,
-            self.segmentation,
-            self._lighting,
-            memory.usual,
-            memory.usual_count,
-        )
-        back = self._aside if self._aside is not None and self._aside.grey == grey_frame else None
-        if back is not None:  # as it was when the frames last were of this kind
-            self.appearance, self.cues, self.segmentation = (
-                back.appearance,
-                back.cues,
-                back.segmentation,
-            )
-            self._lighting, memory.usual, memory.usual_count = (
-                back.lighting,
-                back.usual,
-                back.usual_count,
-            )
-            if self.options.lighting:
-                self._lighting.resume(image, nodes)
-        else:  # learnt here, as on a track's first frame
-            self.appearance = copy.deepcopy(self.appearance)
-            self.cues = copy.deepcopy(self.cues)
-            self.segmentation = copy.deepcopy(self.segmentation)
-            self.appearance.fit(image, nodes)
-            self._lighting = Lighting()
-            if self.options.lighting:
-                self._lighting.start(image, nodes)
-            memory.usual, memory.usual_count = np.zeros(2), 0
-        # what they remember of the last frame is of the other kind, and elsewhere
-        self.cues.start(image, nodes, self.appearance)
-        self.segmentation.start(image, nodes)
-        self._aside, self._look_grey = leaving, grey_frame
-        if back is not None:
-            return None
+    def _predicted(self, grey: NDArray[np.uint8], prediction: Prediction) -> TrackResult:
+        """The predicted contour as the frame's result, just below ``tracking``: on the
+        first frame of a kind (:func:`engine.tracking.looks.change_look`), whose look was
+        learnt from it and cannot judge it."""
+        memory = self._memory
         if memory.outline is not None:
-            memory.outline = follow(memory.outline, prediction.matrix, nodes, memory.hold)
-        self._nodes, self._previous = nodes, grey
+            memory.outline = follow(
+                memory.outline, prediction.matrix, prediction.nodes, memory.hold
+            )
+        self._nodes, self._previous = prediction.nodes, grey
         self._unconfirmed = True
-        return self._result(0, True, UNCONFIRMED if self._visible(nodes, grey) else 0.0)
+        return self._result(0, True, UNCONFIRMED if self._visible(self._nodes, grey) else 0.0)
 
     def _start(
         self, image: NDArray[np.uint8], grey: NDArray[np.uint8], grey_frame: bool

@@ -166,7 +166,7 @@ class Still:
 def test_the_tracker_moves_its_prediction_by_the_alignment(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import engine.tracking.tracker as tracker_module
+    import engine.tracking._attempt as attempt_module
 
     shifts: list[NDArray[np.float64]] = []
 
@@ -175,7 +175,7 @@ def test_the_tracker_moves_its_prediction_by_the_alignment(
         shifts.append(moved.nodes.mean(axis=0) - prediction.nodes.mean(axis=0))
         return moved
 
-    monkeypatch.setattr(tracker_module, "aligned", spy)
+    monkeypatch.setattr(attempt_module, "aligned", spy)
     ious = []
     for align in (True, False):
         tracker = Tracker(
