@@ -48,6 +48,9 @@ class Config(BaseConfig):
         1.5 is a 720-line camera's view of the same scenes).
     davis_grey : bool
         Whether the DAVIS frames are turned grey before tracking (a grey camera's view).
+    davis_tint : bool
+        Whether the DAVIS frames are given a sepia tone through YUV 4:2:0 before tracking
+        (a monochrome camera with a warm cast).
     """
 
     train_count: int | None
@@ -62,6 +65,7 @@ class Config(BaseConfig):
     synthetic_seeds: int = 1
     davis_resize: float = 1.0
     davis_grey: bool = False
+    davis_tint: bool = False
 
 
 FULL = Config("full", None, None, None, None, 40, None, 15, synthetic_seeds=3)

@@ -29,7 +29,8 @@ N`` (frames of every synthetic clip; default 40: a longer clip is the same condi
 drawn slower where its change is spread over the clip, and longer otherwise), ``--resize
 F`` (the DAVIS frames and masks resized by F before tracking and scoring: 1.5 and 2.25 are
 720- and 1080-line views of the same scenes), ``--grey`` (the DAVIS frames turned grey, as
-a grey camera gives them).
+a grey camera gives them), ``--tint`` (in a sepia tone through YUV 4:2:0, as a monochrome
+camera with a warm cast gives them).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -176,6 +177,8 @@ def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
         config = dataclasses.replace(config, davis_resize=args.resize)
     if args.grey:
         config = dataclasses.replace(config, davis_grey=True)
+    if args.tint:
+        config = dataclasses.replace(config, davis_tint=True)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -251,7 +254,7 @@ def factor(text: str) -> float:
 
 def arguments(parser: argparse.ArgumentParser) -> None:
     """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
-    ``--seeds``, ``--length``, ``--resize``, ``--grey`` and ``--nodes``."""
+    ``--seeds``, ``--length``, ``--resize``, ``--grey``, ``--tint`` and ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -292,6 +295,12 @@ def arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--grey", action="store_true", help="turn the DAVIS frames grey before tracking"
+    )
+    parser.add_argument(
+        "--tint",
+        action="store_true",
+        help="give the DAVIS frames a sepia tone (a monochrome camera with a warm cast, "
+        "through YUV 4:2:0) before tracking",
     )
     parser.add_argument(
         "--nodes",

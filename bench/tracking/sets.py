@@ -60,6 +60,9 @@ class ClipSpec:
         DAVIS: the factor its frames and masks are resized by (1: as they are).
     grey : bool
         DAVIS: its frames turned grey (H x W).
+    tint : bool
+        DAVIS: its frames as a monochrome camera with a warm cast sends them
+        (:func:`tinted_frame`).
     """
 
     set: str
@@ -67,6 +70,7 @@ class ClipSpec:
     frames: int | None
     resize: float = 1.0
     grey: bool = False
+    tint: bool = False
 
     def load(self) -> Clip:
         """The clip's frames and masks (its ``source`` is the set)."""
@@ -80,12 +84,33 @@ class ClipSpec:
         if self.grey:
             frames = tuple(grey_frame(f) for f in clip.frames)
             clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
+        if self.tint:
+            frames = tuple(tinted_frame(f) for f in clip.frames)
+            clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
         return clip
 
 
 def grey_frame(frame: Frame) -> Frame:
     """A BGR frame in grey (H x W), as OpenCV converts it."""
     return np.asarray(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), np.uint8)
+
+
+SEPIA = ((0.80, 8.0), (0.92, 6.0), (1.0, 4.0))
+"""A sepia tone's (gain, offset) of the grey level for the blue, green and red channels."""
+
+
+def tinted_frame(frame: Frame) -> Frame:
+    """A BGR frame as a monochrome camera with a warm cast sends it: its grey level in a
+    sepia tone (:data:`SEPIA`), through the YUV 4:2:0 of a video codec (colour at half
+    resolution), decoded to BGR."""
+    level = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    toned = np.dstack([gain * level + offset for gain, offset in SEPIA])
+    image = np.asarray(np.clip(np.rint(toned), 0, 255), np.uint8)
+    h, w = image.shape[:2]
+    even = image[: h - h % 2, : w - w % 2]  # 4:2:0 takes even sides
+    yuv = cv2.cvtColor(np.ascontiguousarray(even), cv2.COLOR_BGR2YUV_I420)
+    image[: h - h % 2, : w - w % 2] = cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420)
+    return image
 
 
 def resized(clip: Clip, shape: tuple[int, int]) -> Clip:
@@ -115,6 +140,8 @@ def davis_view(config: Config) -> list[str]:
         notes.append(f"DAVIS frames and masks resized by {config.davis_resize:g}")
     if config.davis_grey:
         notes.append("DAVIS frames in grey")
+    if config.davis_tint:
+        notes.append("DAVIS frames in a sepia tone through YUV 4:2:0")
     return notes
 
 
@@ -156,8 +183,9 @@ def choose(
     frames = config.synthetic_length if synthetic else config.davis_frames
     resize = 1.0 if synthetic else config.davis_resize
     grey = not synthetic and config.davis_grey
+    tint = not synthetic and config.davis_tint
     chosen = select(names, wanted, count)
-    return [ClipSpec(set_name, name, frames, resize, grey) for name in chosen], None
+    return [ClipSpec(set_name, name, frames, resize, grey, tint) for name in chosen], None
 
 
 def is_partial(config: Config, set_name: str, specs: Sequence[ClipSpec]) -> bool:

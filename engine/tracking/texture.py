@@ -15,12 +15,20 @@ grey level's mean absolute deviation over a wider window).  The thirty in grey t
 0.637 / decay +0.229 over five node counts, against 0.556 / +0.324 without (``python -m
 bench.tracking --cv "grey_texture=false,true" --grey --nodes 112,120,128,136,144``;
 ``docs/tracking-log.md``, 2026-11-29, afternoon).  The motion model and the edges still
-read the grey frame itself.  Coordinates are ``[x, y]`` pixels (x = column, y = row), as
-in OpenCV.
+read the grey frame itself.
+
+A monochrome frame need not have three equal channels: a sepia tone, an infrared
+camera's cast or a codec's chroma noise make each channel an affine function of the grey
+level instead (:func:`is_tinted`).  Read as colour, the thirty in a sepia tone through
+YUV 4:2:0 scored 0.595 (decay +0.293) at 128 nodes; read as grey, with their texture,
+0.637 / +0.246, against 0.644 for the same frames in plain grey (``python -m
+bench.tracking --cv "grey_texture=true" --sets davis-train --nodes 128 --tint``, and
+``--grey``).  Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Final
 
 import cv2
@@ -35,7 +43,11 @@ __all__ = [
     "GREY_GLANCE",
     "GREY_SAMPLE",
     "GREY_TOLERANCE",
+    "TINT_GLANCE",
+    "TINT_KEPT",
+    "TINT_TOLERANCE",
     "is_grey",
+    "is_tinted",
     "texture_image",
 ]
 
@@ -64,6 +76,34 @@ GREY_GLANCE: Final = 31
 GREY_SAMPLE: Final = 7
 """Every 7th pixel along each axis is checked (a prime, so a regular pattern of colour
 cannot hide between the samples): about 2 % of the frame."""
+TINT_TOLERANCE: Final = 6.0
+"""Largest difference (levels) of a channel from an affine function of the grey level, at
+a quarter of the resolution, for a frame whose channels differ to count as grey.  On
+monochrome DAVIS frames given a sepia tone (channels 0.80 g + 8, 0.92 g + 6, g + 4) or an
+infrared camera's magenta cast, raw, through YUV 4:2:0 or JPEG at quality 75: at most 5.0
+(sepia at quality 75; 3.5 through YUV 4:2:0 alone); with chroma noise of +-1 through YUV
+4:2:0: 1.7.  A colour difference of a few levels is still colour: the generated
+``matched_background`` (the object's grey beside it, B +8 and R -3 off) reads 10.6 and
+more on the first frame of seeds 0-23, every other generated condition but
+``low_contrast`` (one channel's levels, 1.5-2.4) 13.1 and more, and the least coloured
+DAVIS frame (every third of the thirty-five sequences') 22.3 (``dog``).  Read as colour,
+the thirty in grey with a sepia tone or a cast scored J 0.555 and 0.584 at 128 nodes,
+against 0.643 in grey."""
+TINT_KEPT: Final = 12.0
+"""The same difference up to which a frame is still read as grey on a track in grey: a
+codec smears a tint's colour further on some frames (sepia through JPEG at quality 30:
+11.6) than it did on the first, and a track's look should not flip with them."""
+TINT_GLANCE: Final = 24.0
+"""The same difference at full resolution on the glance's pixels (:data:`GREY_GLANCE`),
+above which a frame is colour without a closer look (twice :data:`TINT_KEPT`): the tinted
+frames above reach 19.7 there (a codec's colour edges), while 98.8 % of the DAVIS frames
+exceed 24 (the rest cost the closer look, about 1 ms)."""
+TINT_HALVINGS: Final = 2
+"""Halvings (:func:`cv2.pyrDown`) before the closer look: a quarter of the resolution, where
+a codec's half-resolution colour no longer shows at the grey level's edges."""
+TINT_SAMPLE: Final = 2
+"""Every other pixel of the quarter resolution is read: a 20-pixel coloured object
+still gives about six."""
 
 
 def is_grey(image: NDArray[np.uint8]) -> bool:
@@ -75,11 +115,7 @@ def is_grey(image: NDArray[np.uint8]) -> bool:
     ValueError
         If ``image`` is not an H x W or H x W x 3 array.
     """
-    if not isinstance(image, np.ndarray) or not (
-        image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)
-    ):
-        shape = image.shape if isinstance(image, np.ndarray) else type(image)
-        raise ValueError(f"is_grey takes an H x W or H x W x 3 image; got {shape}")
+    _check(image, "is_grey")
     if image.ndim == 2:
         return True
     # a coarse look first: a colour frame is almost always told at once (tens of
@@ -89,6 +125,66 @@ def is_grey(image: NDArray[np.uint8]) -> bool:
         if (sample.max(axis=2) - sample.min(axis=2)).max(initial=0) > GREY_TOLERANCE:
             return False
     return True
+
+
+def is_tinted(image: NDArray[np.uint8], tolerance: float = TINT_TOLERANCE) -> bool:
+    """Whether ``image`` (H x W, or H x W x 3 BGR uint8) is one channel's levels: grey
+    (:func:`is_grey`), or three channels each an affine function of the grey level
+    within ``tolerance`` levels (a monochrome frame with a tint: sepia, an infrared
+    camera's cast, the chroma noise a codec adds to a grey frame; :data:`TINT_TOLERANCE`,
+    and :data:`TINT_KEPT` for a track already in grey).
+
+    Such a frame's colours say nothing its grey level does not.  Judged at a quarter of
+    the resolution: a codec's colour, at half the resolution and in blocks, smears a
+    tint across the grey level's edges, and averaging cancels that (a glance at the full
+    resolution first, within :data:`TINT_GLANCE`, turns away a colour frame).  A colour
+    scene can show one channel's levels too (an object hidden, a generated clip's grey
+    background): the tracker reads a tinted frame as grey only on a track's first frame
+    and while it tracks in grey (:class:`engine.tracking.Tracker`).
+
+    Raises
+    ------
+    ValueError
+        If ``image`` is not an H x W or H x W x 3 array, or ``tolerance`` is not a
+        finite number of levels >= 0.
+    """
+    _check(image, "is_tinted")
+    if isinstance(tolerance, bool) or not (
+        isinstance(tolerance, int | float) and 0 <= tolerance < math.inf
+    ):
+        raise ValueError(f"tolerance must be a finite number of levels >= 0; got {tolerance!r}")
+    if is_grey(image):
+        return True
+    if _affine_residual(image[::GREY_GLANCE, ::GREY_GLANCE]) > TINT_GLANCE:
+        return False
+    small = image
+    for _ in range(TINT_HALVINGS):
+        if min(small.shape[:2]) >= 2:
+            small = np.asarray(cv2.pyrDown(small), np.uint8)
+    return _affine_residual(small[::TINT_SAMPLE, ::TINT_SAMPLE]) <= tolerance
+
+
+def _check(image: NDArray[np.uint8], name: str) -> None:
+    """ValueError unless ``image`` is an H x W or H x W x 3 array."""
+    if not isinstance(image, np.ndarray) or not (
+        image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)
+    ):
+        shape = image.shape if isinstance(image, np.ndarray) else type(image)
+        raise ValueError(f"{name} takes an H x W or H x W x 3 image; got {shape}")
+
+
+def _affine_residual(sample: NDArray[np.uint8]) -> float:
+    """Largest difference (levels) of a sampled pixel's channels from their least-squares
+    affine functions of its mean level."""
+    pixels = sample.reshape(-1, 3).astype(np.float32)
+    if len(pixels) < 2:
+        return 0.0
+    level = pixels.mean(axis=1)
+    level -= level.mean()
+    centred = pixels - pixels.mean(axis=0)
+    spread = float(level @ level)
+    slopes = level @ centred / spread if spread > 0 else np.zeros(3, np.float32)
+    return float(np.abs(centred - np.outer(level, slopes)).max())
 
 
 def texture_image(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:

@@ -24,7 +24,9 @@ and the physics.  Per frame (``step``):
 Frames larger than the option ``working_side`` (480 lines) are tracked downscaled to it
 (:mod:`engine.tracking.working`); contours in and out are in the frame's own pixels.  A
 grey frame is described to the colour models by its grey level and two texture channels
-(option ``grey_texture``, :mod:`engine.tracking.texture`).
+(option ``grey_texture``, :mod:`engine.tracking.texture`); so is a tinted monochrome one
+(sepia, a camera's cast: :func:`~engine.tracking.texture.is_tinted`) on a track's first
+frame and on a track in grey.
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
@@ -72,7 +74,13 @@ from engine.tracking.stages import (
     Prediction,
     Segmentation,
 )
-from engine.tracking.texture import is_grey, texture_image
+from engine.tracking.texture import (
+    TINT_KEPT,
+    TINT_TOLERANCE,
+    is_grey,
+    is_tinted,
+    texture_image,
+)
 from engine.tracking.turn import measure_turn, turned
 from engine.tracking.validity import valid_contour
 from engine.tracking.working import WorkingScale, working_scale
@@ -288,9 +296,10 @@ class Tracker:
 
     @property
     def unconfirmed(self) -> bool:
-        """Whether the last frame was on probation after a re-acquisition that jumped: its
-        confidence is then at most just below
-        :data:`engine.tracking.confidence.TRACKING_FROM`, whatever :attr:`evidence` says.
+        """Whether the last frame was on probation after a re-acquisition that jumped or the
+        first frame of another kind (:mod:`engine.tracking.looks`): its confidence is then
+        at most just below :data:`engine.tracking.confidence.TRACKING_FROM`, whatever
+        :attr:`evidence` says.
         For analysis, as :attr:`evidence` (the confidence benchmark leaves these frames out
         of choosing the threshold).  Not part of :meth:`to_state`.
         """
@@ -372,6 +381,11 @@ class Tracker:
             if shared is not None and not shared.applies_to(self._previous, grey):
                 shared = None
             grey_frame = is_grey(image)
+            starting = self._previous is None or self._previous.shape != grey.shape
+            if not grey_frame and (starting or self._look_grey):
+                # a tint is grey from a track's start, and to a grey look (not to a colour
+                # look: a colour scene's frame may hold one channel's levels for a while)
+                grey_frame = is_tinted(image, TINT_TOLERANCE if starting else TINT_KEPT)
             textured = self.options.grey_texture and grey_frame
             if textured:  # the colour models read texture, the confidence reads it so
                 image = texture_image(grey)

@@ -146,6 +146,33 @@ def test_a_grey_clip_has_grey_frames_and_the_same_masks() -> None:
         np.testing.assert_array_equal(a, b)
 
 
+def test_a_tinted_clip_is_one_channel_in_colour_and_has_the_same_masks() -> None:
+    from bench.tracking.sets import ClipSpec
+    from engine.tracking.texture import is_grey, is_tinted
+
+    names = davis_names()
+    if not names:
+        pytest.skip("no DAVIS validation sequences here")
+    colour = ClipSpec("davis-val", names[0], 3).load()
+    tinted = ClipSpec("davis-val", names[0], 3, tint=True).load()
+    for frame, plain in zip(tinted.frames, colour.frames, strict=True):
+        assert frame.shape == plain.shape
+        assert is_tinted(frame)
+        assert not is_grey(frame)
+        assert not is_tinted(plain)
+    for a, b in zip(tinted.masks, colour.masks, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_tinted_frame_of_odd_sides_keeps_its_size() -> None:
+    from bench.tracking.sets import tinted_frame
+
+    frame = np.random.default_rng(0).integers(0, 256, (7, 9, 3), dtype=np.uint8)
+    out = tinted_frame(frame)
+    assert out.shape == (7, 9, 3)
+    assert out.dtype == np.uint8
+
+
 @pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
 def test_a_grey_run_says_so(tmp_path: Path) -> None:
     from bench.tracking.main import BENCHMARK
@@ -153,3 +180,12 @@ def test_a_grey_run_says_so(tmp_path: Path) -> None:
     args = ["--quick", "--sets", "davis-val", "--trackers", "efdm", "--grey"]
     assert BENCHMARK.main([*args, "--sequences", davis_names()[0], "--out", str(tmp_path)]) == 0
     assert "DAVIS frames in grey" in (tmp_path / "tracking.md").read_text()
+
+
+@pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
+def test_a_tinted_run_says_so(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    args = ["--quick", "--sets", "davis-val", "--trackers", "efdm", "--tint"]
+    assert BENCHMARK.main([*args, "--sequences", davis_names()[0], "--out", str(tmp_path)]) == 0
+    assert "sepia tone" in (tmp_path / "tracking.md").read_text()

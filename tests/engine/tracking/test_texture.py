@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -9,7 +11,13 @@ from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou
 from engine.tracking import Tracker
-from engine.tracking.texture import GREY_TOLERANCE, is_grey, texture_image
+from engine.tracking.texture import (
+    GREY_TOLERANCE,
+    TINT_KEPT,
+    is_grey,
+    is_tinted,
+    texture_image,
+)
 from tests.engine.tracking.moving_disc import assert_same, through_json
 
 U8 = NDArray[np.uint8]
@@ -66,6 +74,61 @@ def test_a_grey_frame_is_grey_and_a_coloured_one_is_not() -> None:
     coloured = np.dstack([grey, grey, grey]).copy()
     coloured[::7, ::7, 2] = 255 - coloured[::7, ::7, 2] // 2  # red where it is sampled
     assert not is_grey(coloured)
+
+
+def sepia(grey: U8) -> U8:
+    """A monochrome frame in a sepia tone: each channel an affine function of the grey."""
+    level = grey.astype(np.float32)
+    toned = np.dstack([0.80 * level + 8, 0.92 * level + 6, level + 4])
+    return np.asarray(np.clip(np.rint(toned), 0, 255), np.uint8)
+
+
+def through_a_codec(image: U8) -> U8:
+    """As a video codec gives it back: YUV 4:2:0 (colour at half resolution), then JPEG."""
+    yuv = cv2.cvtColor(image, cv2.COLOR_BGR2YUV_I420)
+    back = cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420)
+    ok, data = cv2.imencode(".jpg", back, [cv2.IMWRITE_JPEG_QUALITY, 75])
+    assert ok
+    return np.asarray(cv2.imdecode(data, cv2.IMREAD_COLOR), np.uint8)
+
+
+def test_a_tinted_monochrome_frame_is_tinted_not_grey() -> None:
+    tinted = sepia(FRAMES[0])
+    assert not is_grey(tinted)  # its channels differ by up to 51 levels
+    assert is_tinted(tinted)
+    assert is_tinted(through_a_codec(tinted))  # the codec's colour smears across edges
+    assert is_tinted(FRAMES[0])  # grey is one channel's levels too
+    assert is_tinted(np.dstack([FRAMES[0]] * 3))
+
+
+@pytest.mark.parametrize("side", [20, 60])
+def test_a_coloured_object_in_a_tinted_scene_is_colour(side: int) -> None:
+    """A small coloured object (20 px across) is enough: its colour is the best cue."""
+    image = sepia(FRAMES[0]).copy()
+    ys, xs = np.mgrid[0:H, 0:W]
+    inside = (xs - 100) ** 2 + (ys - 90) ** 2 <= (side / 2) ** 2
+    image[inside] = (40, 60, 200)  # red, BGR
+    assert not is_tinted(image)
+    assert not is_tinted(through_a_codec(image))
+
+
+def test_a_colour_difference_of_a_few_levels_is_colour() -> None:
+    """The generated ``matched_background``: beside the object, its grey level 8 levels
+    bluer and 3 less red, on seed 19 otherwise nearly one channel's levels (10.6 levels
+    off).  Read as grey, its track fell from J 0.979 to 0.786.  ``low_contrast``, whose
+    object is the background's colour a little lighter or darker, is one channel's."""
+    from engine.testing.synthetic import make_sequence
+
+    matched = make_sequence("matched_background", seed=19, length=2).frames[0]
+    assert not is_tinted(matched)
+    assert is_tinted(matched, TINT_KEPT)  # a track already in grey stays in grey on it
+    assert is_tinted(make_sequence("low_contrast", seed=0, length=2).frames[0])
+
+
+@pytest.mark.parametrize("tolerance", [-1.0, math.nan, math.inf, True, "6"])
+def test_is_tinted_refuses_a_tolerance_that_is_no_number_of_levels(tolerance: object) -> None:
+    with pytest.raises(ValueError, match="tolerance must be"):
+        is_tinted(FRAMES[0], tolerance)  # type: ignore[arg-type]
 
 
 def test_the_texture_channels_read_edges_and_contrast() -> None:
@@ -150,3 +213,5 @@ def test_texture_image_refuses_what_is_not_a_grey_frame(frame: object) -> None:
 def test_is_grey_refuses_what_is_not_an_image(image: object) -> None:
     with pytest.raises(ValueError, match="is_grey takes"):
         is_grey(image)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="is_tinted takes"):
+        is_tinted(image)  # type: ignore[arg-type]
