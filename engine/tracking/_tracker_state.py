@@ -19,14 +19,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from engine.geometry import as_nodes, circle_nodes
-from engine.tracking._state_codec import from_version_1 as _from_version_1
 from engine.tracking._state_codec import (
+    count,
     pack_compact_frame,
     pack_image,
     unpack_compact_frame,
     unpack_image,
 )
+from engine.tracking._state_codec import from_version_1 as _from_version_1
 from engine.tracking.appearance import LEGACY_COLOUR_BITS
+from engine.tracking.flash import FLASH_FRAMES
 from engine.tracking.lighting import Lighting
 from engine.tracking.looks import Look
 from engine.tracking.memory import Memory
@@ -79,6 +81,7 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
         else tracker._lighting.to_state(compact=compact),
     }
     if previous is not None:  # the kind of frame the stages learnt from, and the other's look
+        state["passed"] = tracker._passed  # frames passed over as a flash since it
         aside = tracker._aside
         state["look"] = {
             "grey": tracker._look_grey,
@@ -162,6 +165,9 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
             if lighting is not None and tracker.options.lighting:
                 tracker._lighting = Lighting.from_state(lighting)
             _restore_look(tracker, state.get("look"))
+            tracker._passed = count(state.get("passed", 0))  # 0: written before the flashes
+            if tracker._passed > FLASH_FRAMES:
+                raise ValueError(f"passed counts at most {FLASH_FRAMES} frames")
             tracker._previous = (
                 unpack_compact_frame(previous)
                 if isinstance(previous, Mapping)

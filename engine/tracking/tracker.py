@@ -55,6 +55,7 @@ from engine.tracking.confidence import (
 )
 from engine.tracking.covering import covered_share
 from engine.tracking.cues import RegionEdgeCues
+from engine.tracking.flash import flashed
 from engine.tracking.holding import carry, carry_by_shape, hold_factors, side_contrast
 from engine.tracking.lighting import Lighting
 from engine.tracking.looks import Look, change_look
@@ -234,6 +235,8 @@ class Tracker:
         self._aside: Look | None = None
         self._evidence: Evidence | None = None
         self._unconfirmed = False
+        # frames in a row passed over as a flash (engine.tracking.flash)
+        self._passed = 0
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -282,8 +285,8 @@ class Tracker:
 
     @property
     def evidence(self) -> Evidence | None:
-        """What the last frame said about its contour (None after a first frame, or when
-        there was nothing to track): the input of the confidence model.
+        """What the last frame said about its contour (None after a first frame, a flash
+        passed over, or when there was nothing to track): the input of the confidence model.
 
         The last result's confidence is
         :func:`engine.tracking.confidence.calibrated` of it, except when the contour lies
@@ -296,10 +299,10 @@ class Tracker:
 
     @property
     def unconfirmed(self) -> bool:
-        """Whether the last frame was on probation after a re-acquisition that jumped or the
-        first frame of another kind (:mod:`engine.tracking.looks`): its confidence is then
-        at most just below :data:`engine.tracking.confidence.TRACKING_FROM`, whatever
-        :attr:`evidence` says.
+        """Whether the last frame was on probation after a re-acquisition that jumped, the
+        first frame of another kind (:mod:`engine.tracking.looks`) or a flash passed over
+        (:mod:`engine.tracking.flash`): its confidence is then at most just below
+        :data:`engine.tracking.confidence.TRACKING_FROM`, whatever :attr:`evidence` says.
         For analysis, as :attr:`evidence` (the confidence benchmark leaves these frames out
         of choosing the threshold).  Not part of :meth:`to_state`.
         """
@@ -407,6 +410,12 @@ class Tracker:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
             return self._start(image, grey, grey_frame)
+        if flashed(grey, self._previous, self._passed):  # passed over: the last contour
+            self._passed += 1
+            self._unconfirmed = True
+            visible = self._visible(self._nodes, grey)
+            return self._result(0, False, UNCONFIRMED if visible else 0.0)
+        self._passed = 0
         raw = image
         # the crowd's covered pixels: read by the motion on the previous frame and by
         # the cue maps on this one (the objects in front, where they were and are)
