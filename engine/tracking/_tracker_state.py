@@ -82,6 +82,7 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
     }
     if previous is not None:  # the kind of frame the stages learnt from, and the other's look
         state["passed"] = tracker._passed  # frames passed over as a flash since it
+        state["reported"] = tracker._reported  # the confidence last reported
         aside = tracker._aside
         state["look"] = {
             "grey": tracker._look_grey,
@@ -168,6 +169,12 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
             tracker._passed = count(state.get("passed", 0))  # 0: written before the flashes
             if tracker._passed > FLASH_FRAMES:
                 raise ValueError(f"passed counts at most {FLASH_FRAMES} frames")
+            reported = state.get("reported", 1.0)  # 1: written before it (none lower)
+            if isinstance(reported, bool) or not (
+                isinstance(reported, int | float) and 0 <= reported <= 1
+            ):
+                raise ValueError(f"reported must be a confidence in [0, 1]; got {reported!r}")
+            tracker._reported = float(reported)
             tracker._previous = (
                 unpack_compact_frame(previous)
                 if isinstance(previous, Mapping)

@@ -235,8 +235,10 @@ class Tracker:
         self._aside: Look | None = None
         self._evidence: Evidence | None = None
         self._unconfirmed = False
-        # frames in a row passed over as a flash (engine.tracking.flash)
+        # frames in a row passed over as a flash (engine.tracking.flash), and the
+        # confidence last reported (a flash reports the last contour with no more)
         self._passed = 0
+        self._reported = 1.0
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -410,11 +412,11 @@ class Tracker:
             return self._result(0, False, 0.0)
         if self._previous is None or self._previous.shape != grey.shape:
             return self._start(image, grey, grey_frame)
-        if flashed(grey, self._previous, self._passed):  # passed over: the last contour
-            self._passed += 1
+        if flashed(grey, self._previous, self._passed):  # passed over: the last contour,
+            self._passed += 1  # no more confident than it was, and not tracking
             self._unconfirmed = True
             visible = self._visible(self._nodes, grey)
-            return self._result(0, False, UNCONFIRMED if visible else 0.0)
+            return self._result(0, False, min(self._reported, UNCONFIRMED) if visible else 0.0)
         self._passed = 0
         raw = image
         # the crowd's covered pixels: read by the motion on the previous frame and by
@@ -562,6 +564,7 @@ class Tracker:
         self._memory = Memory.fresh(self._nodes)
 
     def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
+        self._reported = confidence
         status = status_of(confidence)
         return TrackResult(self._in_frame(self._nodes), iterations, converged, confidence, status)
 

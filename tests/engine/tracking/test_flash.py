@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
 from engine.testing.synthetic import make_sequence
 from engine.tracking import Tracker
+from engine.tracking.confidence import UNCONFIRMED
 from engine.tracking.flash import FLASH_FRAMES, FLASH_RATIO, flashed
 
 U8 = NDArray[np.uint8]
@@ -75,6 +76,32 @@ def test_a_state_written_on_a_flash_resumes_exactly() -> None:
         assert np.array_equal(tracker.step(frame).nodes, resumed.step(frame).nodes)
     del state["passed"]  # written before the flashes: none passed over
     assert Tracker.from_state(state).to_state()["passed"] == 0
+
+
+def test_a_flash_reports_no_more_confidence_than_the_frame_before() -> None:
+    """A lost object stays lost through the flash: the last contour is reported with the
+    lower of its confidence and just below tracking."""
+    tracker = Tracker(START)
+    last = [tracker.step(frame) for frame in DIM[:4]][-1]
+    state = json.loads(json.dumps(tracker.to_state()))
+    assert state["reported"] == last.confidence
+    assert last.status == "tracking"
+    state["reported"] = 0.1  # as if the last frame had been lost
+    lost = Tracker.from_state(state).step(washed_out(DIM[4]))
+    assert (lost.confidence, lost.status) == (0.1, "lost")
+    passed = tracker.step(washed_out(DIM[4]))
+    assert (passed.confidence, passed.status) == (UNCONFIRMED, "uncertain")
+
+
+@pytest.mark.parametrize("reported", [-0.1, 1.5, "0.5", None])
+def test_a_malformed_last_confidence_is_refused(reported: object) -> None:
+    tracker = Tracker(START)
+    for frame in CLIP.frames[:3]:
+        tracker.step(frame)
+    state = tracker.to_state()
+    state["reported"] = reported
+    with pytest.raises(ValueError, match="malformed tracker state"):
+        Tracker.from_state(state)
 
 
 @pytest.mark.parametrize("passed", [-1, FLASH_FRAMES + 1, 1.5, "1", True])
