@@ -6,9 +6,9 @@ what no longer shows (on the validation five with one frame at half the sequence
 out to 0.3 x frame + 190 grey levels, blackswan's contour lost the neck, IoU 0.32, and took
 about 13 frames to grow it back; J 0.724 against 0.770 without the flash).  The tracker
 passes such a frame over instead: it reports the last contour, ``uncertain`` (or
-``lost`` if it was), learns nothing, and tracks the next frame from the last one it tracked (the same clips: 0.758).
-At most :data:`FLASH_FRAMES` in a row are passed over, so that a light switched on, which
-stays, is followed from the frame after.
+``lost`` if it was), learns nothing, and tracks the next frame from the last one it
+tracked (the same clips: 0.753).  At most :data:`FLASH_FRAMES` in a row are passed over,
+so that a light switched on, which stays, is followed from the frame after.
 
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
