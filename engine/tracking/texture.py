@@ -45,6 +45,7 @@ __all__ = [
     "GREY_TOLERANCE",
     "TINT_GLANCE",
     "TINT_KEPT",
+    "TINT_SLOPE",
     "TINT_TOLERANCE",
     "is_grey",
     "is_tinted",
@@ -89,6 +90,12 @@ more on the first frame of seeds 0-23, every other generated condition but
 DAVIS frame (every third of the thirty-five sequences') 22.3 (``dog``).  Read as colour,
 the thirty in grey with a sepia tone or a cast scored J 0.555 and 0.584 at 128 nodes,
 against 0.643 in grey."""
+TINT_SLOPE: Final = 0.25
+"""Most a channel's slope against the grey level (their mean is 1) may differ from 1 for a
+frame to count as tinted: a tint changes the channels nearly alike (the sepia tone above
+0.89 / 1.02 / 1.09, the cast 1.02 / 0.95 / 1.02), while two flat colours lie exactly on a
+line in any case (orange on dark blue: -0.78 / 1.30 / 2.48), and their colours are the
+cue."""
 TINT_KEPT: Final = 12.0
 """The same difference up to which a frame is still read as grey on a track in grey: a
 codec smears a tint's colour further on some frames (sepia through JPEG at quality 30:
@@ -155,13 +162,16 @@ def is_tinted(image: NDArray[np.uint8], tolerance: float = TINT_TOLERANCE) -> bo
         raise ValueError(f"tolerance must be a finite number of levels >= 0; got {tolerance!r}")
     if is_grey(image):
         return True
-    if _affine_residual(image[::GREY_GLANCE, ::GREY_GLANCE]) > TINT_GLANCE:
+    if _affine_fit(image[::GREY_GLANCE, ::GREY_GLANCE])[0] > TINT_GLANCE:
         return False
     small = image
     for _ in range(TINT_HALVINGS):
         if min(small.shape[:2]) >= 2:
             small = np.asarray(cv2.pyrDown(small), np.uint8)
-    return _affine_residual(small[::TINT_SAMPLE, ::TINT_SAMPLE]) <= tolerance
+    residual, slopes = _affine_fit(small[::TINT_SAMPLE, ::TINT_SAMPLE])
+    # one channel's levels, and a tint's: each channel rises with the grey level nearly
+    # as the others do (two flat colours, orange on blue, also lie on a line)
+    return residual <= tolerance and float(np.abs(slopes - 1.0).max()) <= TINT_SLOPE
 
 
 def _check(image: NDArray[np.uint8], name: str) -> None:
@@ -173,18 +183,19 @@ def _check(image: NDArray[np.uint8], name: str) -> None:
         raise ValueError(f"{name} takes an H x W or H x W x 3 image; got {shape}")
 
 
-def _affine_residual(sample: NDArray[np.uint8]) -> float:
-    """Largest difference (levels) of a sampled pixel's channels from their least-squares
-    affine functions of its mean level."""
+def _affine_fit(sample: NDArray[np.uint8]) -> tuple[float, NDArray[np.float32]]:
+    """The largest difference (levels) of a sampled pixel's channels from their
+    least-squares affine functions of its mean level, and the (3,) slopes of those
+    functions (their mean is 1; all 0 for a flat sample)."""
     pixels = sample.reshape(-1, 3).astype(np.float32)
     if len(pixels) < 2:
-        return 0.0
+        return 0.0, np.ones(3, np.float32)
     level = pixels.mean(axis=1)
     level -= level.mean()
     centred = pixels - pixels.mean(axis=0)
     spread = float(level @ level)
     slopes = level @ centred / spread if spread > 0 else np.zeros(3, np.float32)
-    return float(np.abs(centred - np.outer(level, slopes)).max())
+    return float(np.abs(centred - np.outer(level, slopes)).max()), slopes
 
 
 def texture_image(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:

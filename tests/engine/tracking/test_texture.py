@@ -121,8 +121,19 @@ def test_a_colour_difference_of_a_few_levels_is_colour() -> None:
 
     matched = make_sequence("matched_background", seed=19, length=2).frames[0]
     assert not is_tinted(matched)
-    assert is_tinted(matched, TINT_KEPT)  # a track already in grey stays in grey on it
     assert is_tinted(make_sequence("low_contrast", seed=0, length=2).frames[0])
+
+
+def test_two_flat_colours_are_colour() -> None:
+    """Two colours lie on a line in any case (each channel is exactly affine in the grey
+    level); orange on dark blue is no tint: its channels do not rise alike."""
+    from tests.engine.scenes import body_with_legs
+
+    frames, _ = body_with_legs(
+        (120, 160), (80.0, 50.0), (80, 70), [[-10.0, 10.0]], length=40, width=8
+    )
+    assert not is_tinted(frames[0])
+    assert not is_tinted(frames[0], TINT_KEPT)
 
 
 @pytest.mark.parametrize("tolerance", [-1.0, math.nan, math.inf, True, "6"])
