@@ -93,23 +93,19 @@ def test_a_flash_reports_no_more_confidence_than_the_frame_before() -> None:
     assert (passed.confidence, passed.status) == (UNCONFIRMED, "uncertain")
 
 
-@pytest.mark.parametrize("reported", [-0.1, 1.5, "0.5", None])
-def test_a_malformed_last_confidence_is_refused(reported: object) -> None:
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        *(("reported", v) for v in (-0.1, 1.5, "0.5", None)),
+        *(("passed", v) for v in (-1, FLASH_FRAMES + 1, 1.5, "1", True)),
+    ],
+)
+def test_a_malformed_flash_record_is_refused(key: str, value: object) -> None:
+    """The confidence last reported, and the count of frames passed over as a flash."""
     tracker = Tracker(START)
     for frame in CLIP.frames[:3]:
         tracker.step(frame)
     state = tracker.to_state()
-    state["reported"] = reported
-    with pytest.raises(ValueError, match="malformed tracker state"):
-        Tracker.from_state(state)
-
-
-@pytest.mark.parametrize("passed", [-1, FLASH_FRAMES + 1, 1.5, "1", True])
-def test_a_malformed_count_of_frames_passed_over_is_refused(passed: object) -> None:
-    tracker = Tracker(START)
-    for frame in CLIP.frames[:3]:
-        tracker.step(frame)
-    state = tracker.to_state()
-    state["passed"] = passed
+    state[key] = value
     with pytest.raises(ValueError, match="malformed tracker state"):
         Tracker.from_state(state)
