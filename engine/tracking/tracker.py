@@ -26,7 +26,8 @@ Frames larger than the option ``working_side`` (480 lines) are tracked downscale
 grey frame is described to the colour models by its grey level and two texture channels
 (option ``grey_texture``, :mod:`engine.tracking.texture`); so is a tinted monochrome one
 (sepia, a camera's cast: :func:`~engine.tracking.texture.is_tinted`) on a track's first
-frame and on a track in grey.
+frame and on a track in grey.  A noisy colour frame is smoothed for the colour models
+(:mod:`engine.tracking.noise`); the motion and the edges read its grey as it is.
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
@@ -61,6 +62,7 @@ from engine.tracking.lighting import Lighting
 from engine.tracking.looks import Look, change_look
 from engine.tracking.maps import roi_box
 from engine.tracking.memory import Memory
+from engine.tracking.noise import denoised
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.reacquisition import jumped, search_reach, search_shape
@@ -396,6 +398,8 @@ class Tracker:
                 image = texture_image(grey)
                 if shared is not None:  # the frame's light was measured on its grey
                     shared = dataclasses.replace(shared, light=None)
+            else:  # the colours, not the sensor's noise (clean video: the frame itself)
+                image = denoised(image, grey)
             return self._step(image, grey, Crowd(covered, shared), textured, grey_frame)
 
     def _step(
