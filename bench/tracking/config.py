@@ -51,6 +51,9 @@ class Config(BaseConfig):
     davis_tint : bool
         Whether the DAVIS frames are given a sepia tone through YUV 4:2:0 before tracking
         (a monochrome camera with a warm cast).
+    davis_noise : float
+        Deviation (levels) of the Gaussian noise added to every channel of the DAVIS
+        frames before tracking (a noisy sensor's; 0: none).
     """
 
     train_count: int | None
@@ -66,6 +69,7 @@ class Config(BaseConfig):
     davis_resize: float = 1.0
     davis_grey: bool = False
     davis_tint: bool = False
+    davis_noise: float = 0.0
 
 
 FULL = Config("full", None, None, None, None, 40, None, 15, synthetic_seeds=3)

@@ -30,7 +30,8 @@ drawn slower where its change is spread over the clip, and longer otherwise), ``
 F`` (the DAVIS frames and masks resized by F before tracking and scoring: 1.5 and 2.25 are
 720- and 1080-line views of the same scenes), ``--grey`` (the DAVIS frames turned grey, as
 a grey camera gives them), ``--tint`` (in a sepia tone through YUV 4:2:0, as a monochrome
-camera with a warm cast gives them).
+camera with a warm cast gives them), ``--noise SIGMA`` (Gaussian noise of SIGMA grey
+levels added to every channel of the DAVIS frames, as a noisy sensor gives them).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -70,6 +71,8 @@ MIN_LENGTH = 3
 leave one that is."""
 MIN_RESIZE, MAX_RESIZE = 0.25, 4.0
 """Resize factors of ``--resize``: 120 to 1920 lines from DAVIS's 480."""
+MAX_NOISE = 64.0
+"""Largest ``--noise`` deviation: a quarter of the range, far beyond any camera's."""
 TIMED_ORDER = ("davis-val", "davis-train", "synthetic")
 """The set whose timings are the speed figures: the first of these that runs."""
 
@@ -179,6 +182,8 @@ def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
         config = dataclasses.replace(config, davis_grey=True)
     if args.tint:
         config = dataclasses.replace(config, davis_tint=True)
+    if args.noise:
+        config = dataclasses.replace(config, davis_noise=args.noise)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -252,9 +257,21 @@ def factor(text: str) -> float:
     return value
 
 
+def noise_level(text: str) -> float:
+    """An argparse type: a noise deviation in [0, :data:`MAX_NOISE`] grey levels."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number; got {text!r}") from None
+    if not 0.0 <= value <= MAX_NOISE:
+        raise argparse.ArgumentTypeError(f"must be in [0, {MAX_NOISE:g}]; got {value:g}")
+    return value
+
+
 def arguments(parser: argparse.ArgumentParser) -> None:
     """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
-    ``--seeds``, ``--length``, ``--resize``, ``--grey``, ``--tint`` and ``--nodes``."""
+    ``--seeds``, ``--length``, ``--resize``, ``--grey``, ``--tint``, ``--noise`` and
+    ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -301,6 +318,14 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="give the DAVIS frames a sepia tone (a monochrome camera with a warm cast, "
         "through YUV 4:2:0) before tracking",
+    )
+    parser.add_argument(
+        "--noise",
+        type=noise_level,
+        default=0.0,
+        metavar="SIGMA",
+        help="add Gaussian noise of SIGMA grey levels to every channel of the DAVIS frames "
+        "before tracking (a noisy sensor; default 0)",
     )
     parser.add_argument(
         "--nodes",

@@ -13,6 +13,7 @@ A set whose data is absent is skipped with a note.
 
 from __future__ import annotations
 
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,6 +64,9 @@ class ClipSpec:
     tint : bool
         DAVIS: its frames as a monochrome camera with a warm cast sends them
         (:func:`tinted_frame`).
+    noise : float
+        DAVIS: deviation (levels) of the Gaussian noise added to every channel of its
+        frames, as a noisy sensor's (:func:`noisy_frame`; 0: none).
     """
 
     set: str
@@ -71,6 +75,7 @@ class ClipSpec:
     resize: float = 1.0
     grey: bool = False
     tint: bool = False
+    noise: float = 0.0
 
     def load(self) -> Clip:
         """The clip's frames and masks (its ``source`` is the set)."""
@@ -86,6 +91,10 @@ class ClipSpec:
             clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
         if self.tint:
             frames = tuple(tinted_frame(f) for f in clip.frames)
+            clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
+        if self.noise > 0:
+            seed = zlib.crc32(self.name.encode())
+            frames = tuple(noisy_frame(f, self.noise, (seed, k)) for k, f in enumerate(clip.frames))
             clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
         return clip
 
@@ -111,6 +120,14 @@ def tinted_frame(frame: Frame) -> Frame:
     yuv = cv2.cvtColor(np.ascontiguousarray(even), cv2.COLOR_BGR2YUV_I420)
     image[: h - h % 2, : w - w % 2] = cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420)
     return image
+
+
+def noisy_frame(frame: Frame, sigma: float, seed: tuple[int, int]) -> Frame:
+    """``frame`` with independent Gaussian noise of ``sigma`` levels on every pixel and
+    channel (rounded, clipped to 0-255), drawn from ``seed`` (the clip's and the frame's):
+    the same noise on every run."""
+    noise = np.random.default_rng(seed).normal(0.0, sigma, frame.shape)
+    return np.asarray(np.clip(np.rint(frame + noise), 0, 255), np.uint8)
 
 
 def resized(clip: Clip, shape: tuple[int, int]) -> Clip:
@@ -142,6 +159,8 @@ def davis_view(config: Config) -> list[str]:
         notes.append("DAVIS frames in grey")
     if config.davis_tint:
         notes.append("DAVIS frames in a sepia tone through YUV 4:2:0")
+    if config.davis_noise > 0:
+        notes.append(f"Gaussian noise of {config.davis_noise:g} levels on every DAVIS channel")
     return notes
 
 
@@ -184,8 +203,10 @@ def choose(
     resize = 1.0 if synthetic else config.davis_resize
     grey = not synthetic and config.davis_grey
     tint = not synthetic and config.davis_tint
+    noise = 0.0 if synthetic else config.davis_noise
     chosen = select(names, wanted, count)
-    return [ClipSpec(set_name, name, frames, resize, grey, tint) for name in chosen], None
+    specs = [ClipSpec(set_name, name, frames, resize, grey, tint, noise) for name in chosen]
+    return specs, None
 
 
 def is_partial(config: Config, set_name: str, specs: Sequence[ClipSpec]) -> bool:

@@ -189,3 +189,35 @@ def test_a_tinted_run_says_so(tmp_path: Path) -> None:
     args = ["--quick", "--sets", "davis-val", "--trackers", "efdm", "--tint"]
     assert BENCHMARK.main([*args, "--sequences", davis_names()[0], "--out", str(tmp_path)]) == 0
     assert "sepia tone" in (tmp_path / "tracking.md").read_text()
+
+
+def test_a_noisy_clip_has_the_same_noise_on_every_load_and_the_same_masks() -> None:
+    from bench.tracking.sets import ClipSpec
+
+    names = davis_names()
+    if not names:
+        pytest.skip("no DAVIS validation sequences here")
+    colour = ClipSpec("davis-val", names[0], 3).load()
+    noisy = ClipSpec("davis-val", names[0], 3, noise=8.0).load()
+    again = ClipSpec("davis-val", names[0], 3, noise=8.0).load()
+    for frame, plain, same in zip(noisy.frames, colour.frames, again.frames, strict=True):
+        np.testing.assert_array_equal(frame, same)
+        difference = frame.astype(np.float64) - plain
+        assert abs(difference.mean()) < 0.5  # zero-mean noise
+        assert 6.0 < difference.std() < 8.5  # of 8 levels (fewer where clipped)
+    # each frame draws its own noise
+    first = noisy.frames[0].astype(np.float64) - colour.frames[0]
+    second = noisy.frames[1].astype(np.float64) - colour.frames[1]
+    assert abs(np.corrcoef(first.ravel(), second.ravel())[0, 1]) < 0.1
+    for a, b in zip(noisy.masks, colour.masks, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("noise", ["-1", "65", "x", "nan"])
+def test_a_noise_out_of_range_is_refused(tmp_path: Path, noise: str) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    with pytest.raises(SystemExit) as exit_info:
+        BENCHMARK.main(["--quick", "--noise", noise, "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert not (tmp_path / "tracking.json").exists()
