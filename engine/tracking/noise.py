@@ -83,7 +83,17 @@ def noise_level(grey: NDArray[np.uint8]) -> float:
         The median response of the difference-of-Laplacians kernel on a grid of
         :data:`GRID` pixels, scaled to one deviation of independent Gaussian noise
         (:data:`LAPLACIAN_NORM`, :data:`HALF_NORMAL_MEDIAN`); 0 for a frame under 3 x 3.
+
+    Raises
+    ------
+    ValueError
+        If ``grey`` is not a 2-D uint8 array.
     """
+    grey = np.asarray(grey)
+    if grey.ndim != 2 or grey.dtype != np.uint8:
+        raise ValueError(
+            f"noise_level takes an H x W uint8 grey frame; got {grey.dtype} of shape {grey.shape}"
+        )
     h, w = grey.shape
     if h < 3 or w < 3:
         return 0.0

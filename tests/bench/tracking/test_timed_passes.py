@@ -123,12 +123,18 @@ def test_davis_clips_take_the_resize_asked_for(tmp_path: Path) -> None:
     assert "davis-val 720p" in text  # the speed goals name the frames' size
 
 
-@pytest.mark.parametrize("resize", ["0.2", "5", "x", "nan"])
-def test_a_resize_out_of_range_is_refused(tmp_path: Path, resize: str) -> None:
+@pytest.mark.parametrize(
+    ("flag", "value"),
+    [
+        *(("--resize", v) for v in ("0.2", "5", "x", "nan")),
+        *(("--noise", v) for v in ("-1", "65", "x", "nan")),
+    ],
+)
+def test_a_view_out_of_range_is_refused(tmp_path: Path, flag: str, value: str) -> None:
     from bench.tracking.main import BENCHMARK
 
     with pytest.raises(SystemExit) as exit_info:
-        BENCHMARK.main(["--quick", "--resize", resize, "--out", str(tmp_path)])
+        BENCHMARK.main(["--quick", flag, value, "--out", str(tmp_path)])
     assert exit_info.value.code == 2
     assert not (tmp_path / "tracking.json").exists()
 
@@ -211,13 +217,3 @@ def test_a_noisy_clip_has_the_same_noise_on_every_load_and_the_same_masks() -> N
     assert abs(np.corrcoef(first.ravel(), second.ravel())[0, 1]) < 0.1
     for a, b in zip(noisy.masks, colour.masks, strict=True):
         np.testing.assert_array_equal(a, b)
-
-
-@pytest.mark.parametrize("noise", ["-1", "65", "x", "nan"])
-def test_a_noise_out_of_range_is_refused(tmp_path: Path, noise: str) -> None:
-    from bench.tracking.main import BENCHMARK
-
-    with pytest.raises(SystemExit) as exit_info:
-        BENCHMARK.main(["--quick", "--noise", noise, "--out", str(tmp_path)])
-    assert exit_info.value.code == 2
-    assert not (tmp_path / "tracking.json").exists()

@@ -46,6 +46,15 @@ def test_clean_frames_measure_no_noise() -> None:
         assert noise_level(grey_of(frame)) < NOISY_FROM, condition
 
 
+@pytest.mark.parametrize(
+    "bad",
+    [np.zeros((20, 30, 3), np.uint8), np.zeros((20, 30), np.float32), np.zeros(30, np.uint8)],
+)
+def test_noise_is_measured_on_a_grey_uint8_frame_only(bad: NDArray[np.generic]) -> None:
+    with pytest.raises(ValueError, match="H x W uint8 grey frame"):
+        noise_level(bad)  # type: ignore[arg-type]
+
+
 def test_a_clean_frame_is_passed_on_itself() -> None:
     frame = make_sequence("clutter", seed=0, length=2).frames[1]
     assert denoised(frame, grey_of(frame)) is frame
