@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.tracking.noise import Smoothing
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
@@ -270,6 +271,7 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
     image: NDArray[np.uint8] | None = None
     grey: NDArray[np.uint8] | None = None
     shared: SharedMotion | None = None
+    smoothing: Smoothing | None = None
     while True:
         try:
             message = pipe.recv()
@@ -295,6 +297,7 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
                 offset = image.nbytes
                 grey = np.ndarray(grey_shape, np.uint8, buffer, offset).copy()
                 offset += grey.nbytes
+                smoothing = Smoothing(image, grey)  # once for this worker's objects
                 shared = None
                 if motion is not None:
                     background, has_flow, lit = motion
@@ -313,7 +316,8 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
                 value = []
                 for ident, covered in message[1]:
                     tracker = trackers[ident]
-                    value.append(tracker.step_prepared(image, grey, Crowd(covered, shared)))
+                    crowd = Crowd(covered, shared, smoothing)
+                    value.append(tracker.step_prepared(image, grey, crowd))
             elif kind == "p":
                 value = probability_of(trackers[message[1]], message[2])
             elif kind == "state":

@@ -45,6 +45,7 @@ from engine.tracking._processes import (
 from engine.tracking.confidence import Status
 from engine.tracking.covering import Order, Silhouette, fronts
 from engine.tracking.lighting import Lighting
+from engine.tracking.noise import Smoothing
 from engine.tracking.options import TrackerOptions
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
@@ -239,6 +240,11 @@ class ObjectsTracker:
         # checked once, a clear error before any object moves; converted to grey once
         image, grey = as_frame(frame)
         shape = grey.shape
+        # a noisy frame smoothed once for every object, and what the session itself reads
+        # of the frame's colours (who is in front, the change of light) read from it, as
+        # each object's tracker reads them (the frame itself on clean video)
+        smoothing = Smoothing(image, grey)
+        colours = image if image.ndim == 2 else smoothing.of(image, grey)
         silhouettes = {
             key: found
             for key, tracker in self.trackers.items()
@@ -247,10 +253,10 @@ class ObjectsTracker:
 
         def probability(key: Hashable, box: tuple[int, int, int, int]) -> NDArray[np.float32]:
             x0, y0, x1, y1 = box
-            return probability_of(self.trackers[key], image[y0:y1, x0:x1])
+            return probability_of(self.trackers[key], colours[y0:y1, x0:x1])
 
         in_front, self._order = fronts(silhouettes, probability, self._order)
-        shared = self._shared(image, grey, silhouettes)
+        shared = self._shared(colours, grey, silhouettes)
         if self._workers is not None and self.trackers:
             self._workers.frame(image, grey, shared)
         self._previous = grey
@@ -263,7 +269,7 @@ class ObjectsTracker:
             covers = {
                 key: self._covered(key, in_front, silhouettes, results, shape) for key in wave
             }
-            done = self._step_wave(image, grey, wave, covers, shared)
+            done = self._step_wave(image, grey, wave, covers, shared, smoothing)
             results.update(zip(wave, done, strict=True))
             waiting = [k for k in waiting if k not in results]
         out = []
@@ -307,16 +313,17 @@ class ObjectsTracker:
         wave: list[Hashable],
         covers: Mapping[Hashable, NDArray[np.bool_] | None],
         shared: SharedMotion | None,
+        smoothing: Smoothing,
     ) -> list[Any]:
         """Track the objects of ``wave`` (on the worker processes, or the pool of threads,
-        when there is one)."""
+        when there is one; each process smooths a noisy frame once for its objects)."""
         if self._workers is not None:
             return self._workers.step([(self.trackers[k], covers[k]) for k in wave])
 
         def one(key: Hashable) -> Any:
             tracker = self.trackers[key]
             assert not isinstance(tracker, Remote)
-            return tracker.step_prepared(image, grey, Crowd(covers[key], shared))
+            return tracker.step_prepared(image, grey, Crowd(covers[key], shared, smoothing))
 
         if self.workers > 1 and len(wave) > 1:
             if self._pool is None:

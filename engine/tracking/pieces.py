@@ -12,7 +12,7 @@ pixels (x = column, y = row), as in OpenCV.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from engine.geometry import polygon_area
 from engine.tracking._frames import as_frame
 from engine.tracking.confidence import Status, status_of
+from engine.tracking.noise import Smoothing
 from engine.tracking.result import TrackResult
 from engine.tracking.shared import Crowd
 from engine.tracking.tracker import Tracker
@@ -105,7 +106,10 @@ class PiecesTracker:
         crowd: Crowd | None = None,
     ) -> PiecesResult:
         """:meth:`step` on a frame checked and converted once (:meth:`Tracker.step_prepared`,
-        ``crowd`` as there)."""
+        ``crowd`` as there).  A noisy frame is smoothed once for all the pieces."""
+        crowd = crowd or Crowd()
+        if crowd.smoothing is None:
+            crowd = replace(crowd, smoothing=Smoothing(image, grey))
         pieces = [t.step_prepared(image, grey, crowd) for t in self.trackers]
         weights = np.array([abs(polygon_area(p.nodes)) for p in pieces]) + 1.0
         confidence = float(np.dot(weights, [p.confidence for p in pieces]) / weights.sum())

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from engine.tracking.background import frame_background
 from engine.tracking.flow import FlowField, dense_flow
 from engine.tracking.motion import FramePair
+from engine.tracking.noise import Smoothing
 
 __all__ = ["Crowd", "SharedLight", "SharedMotion"]
 
@@ -110,10 +111,14 @@ class Crowd:
         were in the last frame and are in this one (:mod:`engine.tracking.covering`).
     shared : SharedMotion or None
         The whole frame's background motion and flow.
+    smoothing : Smoothing or None
+        The frame smoothed of its sensor noise once for all the trackers that step on it
+        (:mod:`engine.tracking.noise`; None: each smooths its own).
     """
 
     covered: NDArray[np.bool_] | None = None
     shared: SharedMotion | None = None
+    smoothing: Smoothing | None = None
 
     def motion_keywords(self) -> dict[str, NDArray[np.bool_] | SharedMotion]:
         """The keywords a motion model is given (only those set: a model that takes

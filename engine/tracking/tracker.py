@@ -364,7 +364,8 @@ class Tracker:
         :class:`~engine.tracking.ObjectsTracker`: the pixels other objects in front of
         this one hide (:mod:`engine.tracking.covering`) and the background's motion
         and dense flow measured once over the whole frame (:mod:`engine.tracking.shared`;
-        used when measured between this tracker's previous frame and ``grey``).
+        used when measured between this tracker's previous frame and ``grey``), and the
+        frame smoothed of its noise once for all (:class:`engine.tracking.noise.Smoothing`).
 
         Raises
         ------
@@ -399,7 +400,8 @@ class Tracker:
                 if shared is not None:  # the frame's light was measured on its grey
                     shared = dataclasses.replace(shared, light=None)
             else:  # the colours, not the sensor's noise (clean video: the frame itself)
-                image = denoised(image, grey)
+                smoothing = crowd.smoothing
+                image = denoised(image, grey) if smoothing is None else smoothing.of(image, grey)
             return self._step(image, grey, Crowd(covered, shared), textured, grey_frame)
 
     def _step(

@@ -34,10 +34,16 @@ def same(a: list[ObjectResult], b: list[ObjectResult]) -> bool:
     )
 
 
-def test_objects_on_two_processes_track_exactly_as_in_this_one(remote: ObjectsTracker) -> None:
+@pytest.mark.parametrize("noise", [0.0, 12.0])
+def test_objects_on_two_processes_track_exactly_as_in_this_one(
+    remote: ObjectsTracker, noise: float
+) -> None:
+    # with noise, each worker smooths the frame itself for its objects, as this one does
     local = ObjectsTracker(STARTS)
     behind = 0
-    for frame in CROWD.frames:
+    rng = np.random.default_rng(7)
+    for clean in CROWD.frames:
+        frame = np.asarray(np.clip(clean + rng.normal(0.0, noise, clean.shape), 0, 255), np.uint8)
         here, there = local.step(frame), remote.step(frame)
         assert same(here, there)
         behind += sum(bool(r.behind) for r in here)
