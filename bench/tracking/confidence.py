@@ -102,7 +102,7 @@ def _sequence(job: tuple[str, str, str, int, bool]) -> dict[str, Any]:
         if kind == PLAIN and tracker.unconfirmed:
             kind = CAPPED  # on probation (calibrated has its own cap, applied in reported)
         features = [e.inside, e.outside, e.settled, e.motion_inside, e.motion_outside]
-        features += [e.motion_seen, e.shape, *e.change]
+        features += [e.motion_seen, e.judged_shape, *e.change]
         rows.append([*map(float, features), kind, result.confidence, iou])
     return {"set": label, "name": name, "nodes": nodes, "rows": rows}
 

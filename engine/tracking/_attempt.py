@@ -143,7 +143,7 @@ def track_around(
         cut = tracker.segmentation.segment(image, maps, prediction.nodes, nodes, outline=outline)
     if cut is not None and valid_contour(cut, grey.shape, tracker._nodes):
         nodes = cut
-    found = evidence(maps, nodes, refinement.converged, memory.outline)
+    found = evidence(maps, nodes, refinement.converged, memory.outline, memory.recent)
     usual_in, usual_out = memory.usual_with(found.inside, found.outside)
     found = dataclasses.replace(
         found, usual_inside=usual_in, usual_outside=usual_out, grey=textured

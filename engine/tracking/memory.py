@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from engine.geometry import as_nodes
 from engine.tracking._state_codec import count, factors
 from engine.tracking.confidence import USUAL_FRAMES
+from engine.tracking.recent_shapes import RecentShapes
 
 __all__ = ["Memory"]
 
@@ -57,6 +58,10 @@ class Memory:
         the first frame (``hold`` then).  They ride on the outline, which turns with
         the object (:mod:`~engine.tracking.turn`); None: only ``hold`` is known, and
         it rides on the contour's nodes.
+    recent : RecentShapes
+        The shapes of the last frames on the object, which the confidence
+        compares a contour's shape with besides the outline
+        (:mod:`~engine.tracking.recent_shapes`).
     """
 
     misses: int
@@ -69,6 +74,7 @@ class Memory:
     reacquired: bool = False
     jumped: bool = True
     marks: NDArray[np.float64] | None = None
+    recent: RecentShapes = field(default_factory=RecentShapes)
 
     @classmethod
     def fresh(cls, nodes: NDArray[np.float64]) -> Memory:
@@ -92,8 +98,8 @@ class Memory:
 
     def to_state(self) -> dict[str, Any]:
         """``{"misses", "probation", "shape", "hold", "outline", "usual", "reacquired",
-        "jumped"}`` and ``"marks"`` when known, JSON-able (``"usual"``: ``[inside, outside,
-        frames counted]``)."""
+        "jumped", "recent"}`` and ``"marks"`` when known, JSON-able (``"usual"``: ``[inside,
+        outside, frames counted]``)."""
         state: dict[str, Any] = {
             "misses": self.misses,
             "probation": self.probation,
@@ -103,6 +109,7 @@ class Memory:
             "usual": [float(self.usual[0]), float(self.usual[1]), self.usual_count],
             "reacquired": self.reacquired,
             "jumped": self.jumped,
+            "recent": self.recent.to_state(),
         }
         if self.marks is not None:
             state["marks"] = self.marks.tolist()
@@ -117,8 +124,9 @@ class Memory:
         one without ``"reacquired"`` (written before it) has not re-acquired; one without
         ``"jumped"`` (written when every re-acquisition was on probation) reports its
         probation's frames ``uncertain``; one without ``"marks"`` (written before the
-        outline turned) keeps its marks on the contour's nodes.  Marks need an outline,
-        one per point.
+        outline turned) keeps its marks on the contour's nodes; one without ``"recent"``
+        (written before the recent shapes) has none yet.  Marks need an outline, one per
+        point.
         """
         if not isinstance(state, Mapping):
             raise ValueError(f"the search state must be a dict; got {type(state).__name__}")
@@ -152,4 +160,5 @@ class Memory:
             reacquired,
             jumped,
             marks,
+            RecentShapes.from_state(state.get("recent", [])),
         )

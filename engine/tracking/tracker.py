@@ -49,11 +49,7 @@ from engine.tracking._frames import check_prepared
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._tracker_state import restore, snapshot
 from engine.tracking.appearance import ColourHistogram
-from engine.tracking.confidence import (
-    UNCONFIRMED,
-    Evidence,
-    status_of,
-)
+from engine.tracking.confidence import UNCONFIRMED, Evidence, status_of
 from engine.tracking.covering import covered_share
 from engine.tracking.cues import RegionEdgeCues
 from engine.tracking.flash import flashed
@@ -66,6 +62,7 @@ from engine.tracking.noise import denoised
 from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.reacquisition import jumped, search_reach, search_shape
+from engine.tracking.recent_shapes import remembered
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
 from engine.tracking.shape_memory import follow
@@ -512,7 +509,8 @@ class Tracker:
             if signal >= LEARN_ABOVE:
                 self.appearance.update(image, self._nodes)
             self.segmentation.learn(image, self._nodes)
-        return self._result(refinement.iterations, refinement.converged, confidence)
+        remember = not self._unconfirmed and remembered(attempt.evidence)
+        return self._result(refinement.iterations, refinement.converged, confidence, remember)
 
     def _search(
         self, image: NDArray[np.uint8], grey: NDArray[np.uint8], prediction: Prediction
@@ -563,15 +561,20 @@ class Tracker:
             self._memory.outline = self._nodes.copy()
             if self.options.turn_outline:  # the marks ride on the outline
                 self._memory.marks = self._memory.hold.copy()
-        return self._result(0, True, 1.0 if self._visible(self._nodes, grey) else 0.0)
+        return self._result(0, True, 1.0 if self._visible(self._nodes, grey) else 0.0, True)
 
     def _forget_search(self) -> None:
         """No frames missed; the current contour is the shape to look for."""
         self._memory = Memory.fresh(self._nodes)
 
-    def _result(self, iterations: int, converged: bool, confidence: float) -> TrackResult:
+    def _result(
+        self, iterations: int, converged: bool, confidence: float, remember: bool = False
+    ) -> TrackResult:
+        """The frame's result; ``remember``: its contour's shape is one later contours are
+        compared with (:mod:`engine.tracking.recent_shapes`)."""
         self._reported = confidence
         status = status_of(confidence)
+        self._memory.recent.add(self._nodes, remember and confidence > 0.0)
         return TrackResult(self._in_frame(self._nodes), iterations, converged, confidence, status)
 
     @staticmethod

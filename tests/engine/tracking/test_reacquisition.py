@@ -134,6 +134,9 @@ def test_a_state_taken_mid_search_resumes_exactly() -> None:
         ("reacquired", "yes"),
         ("jumped", 0),
         ("jumped", None),
+        ("recent", "shapes"),
+        ("recent", [3]),
+        ("recent", [None] * 21),
     ],
 )
 def test_a_malformed_search_state_is_refused(key: str, value: object) -> None:

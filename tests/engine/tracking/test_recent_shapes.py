@@ -1,0 +1,106 @@
+"""engine.tracking.recent_shapes: a contour's shape judged against the last frames on the object."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from engine.geometry import circle_nodes
+from engine.tracking.confidence import Evidence, calibrated, evidence, shape_overlap
+from engine.tracking.maps import Maps
+from engine.tracking.memory import Memory
+from engine.tracking.recent_shapes import RECENT_FRAMES, RecentShapes, remembered
+
+DISC = circle_nodes((60.0, 50.0), 20.0, 64)
+
+
+def stretched(k: float) -> np.ndarray:
+    """The disc stretched k times along x about its centre."""
+    return (DISC - [60.0, 50.0]) * [k, 1.0] + [60.0, 50.0]
+
+
+def disc_maps() -> Maps:
+    """p(object) 0.9 on a wide ellipse around the disc (room for every stretch), 0.1 elsewhere."""
+    ys, xs = np.mgrid[0:100, 0:120]
+    inside = ((xs - 60.0) / 45.0) ** 2 + ((ys - 50.0) / 25.0) ** 2 <= 1.0
+    p = np.where(inside, 0.9, 0.1).astype(np.float32)
+    return Maps((0, 0), p, np.zeros_like(p))
+
+
+def test_a_shape_that_changed_gradually_matches_the_frames_before_it() -> None:
+    recent = RecentShapes()
+    for k in np.linspace(1.0, 1.9, 10):  # a dog stretching out as it runs
+        recent.add(stretched(float(k)), True)
+    now = stretched(2.0)
+    assert shape_overlap(now, DISC) < 0.75  # far from the first frame's outline
+    assert recent.overlap(now) > 0.95  # close to the last frame's
+    # the place and the size do not count, as with the outline
+    assert recent.overlap(0.5 * now + 7.0) == pytest.approx(recent.overlap(now), abs=0.02)
+
+
+def test_only_the_last_frames_on_the_object_count() -> None:
+    recent = RecentShapes()
+    assert recent.overlap(DISC) == 0.0  # none known
+    recent.add(DISC, True)
+    assert recent.overlap(DISC) == 1.0
+    recent.add(stretched(3.0), False)  # not on the object: not kept
+    assert recent.overlap(stretched(3.0)) == pytest.approx(shape_overlap(stretched(3.0), DISC))
+    for _ in range(RECENT_FRAMES - 1):
+        recent.add(stretched(3.0), False)
+    assert recent.overlap(DISC) == 0.0  # the disc is RECENT_FRAMES frames back: forgotten
+
+
+def test_evidence_reads_the_better_of_the_outline_and_the_recent_shapes() -> None:
+    recent = RecentShapes()
+    for k in np.linspace(1.0, 1.9, 10):
+        recent.add(stretched(float(k)), True)
+    now = stretched(2.0)
+    alone = evidence(disc_maps(), now, True, outline=DISC)
+    both = evidence(disc_maps(), now, True, outline=DISC, recent=recent)
+    assert both.shape == alone.shape < 0.75  # the outline's overlap, as it was
+    assert both.recent_shape > 0.95
+    assert both.judged_shape == both.recent_shape
+    assert calibrated(both) > calibrated(alone)
+    # the gate reads the outline alone: the recent shapes cannot vouch for themselves
+    assert remembered(both) == remembered(alone)
+    # no outline (no shape memory): the shape is not judged at all
+    assert evidence(disc_maps(), now, True, recent=recent).judged_shape == 1.0
+
+
+def test_the_gate_is_the_outline_models_threshold() -> None:
+    # an object-like inside, its ring a little object-like too (a banner of its colours)
+    good = Evidence(0.85, 0.3, True, shape=0.95)
+    slid = Evidence(0.85, 0.3, True, shape=0.2, recent_shape=0.95)  # vouched for by itself
+    assert remembered(good)
+    assert calibrated(slid) == pytest.approx(calibrated(good))  # reported as alike...
+    assert not remembered(slid)  # ...but its shape is not remembered
+
+
+def test_the_recent_shapes_survive_the_state_bit_for_bit() -> None:
+    memory = Memory.fresh(DISC)
+    for k, on in ((1.0, True), (1.3, False), (1.6, True)):
+        memory.recent.add(stretched(k), on)
+    state = json.loads(json.dumps(memory.to_state()))
+    assert [s is None for s in state["recent"]] == [False, True, False]
+    back = Memory.from_state(state, len(DISC))
+    for k in (1.0, 1.8, 2.5):
+        assert back.recent.overlap(stretched(k)) == memory.recent.overlap(stretched(k))
+    older = {key: v for key, v in state.items() if key != "recent"}  # written before them
+    assert Memory.from_state(older, len(DISC)).recent.overlap(DISC) == 0.0
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "shapes",
+        [None] * (RECENT_FRAMES + 1),
+        [3],
+        ["not base64 at all"],
+        [RecentShapes([np.zeros((8, 8), bool)]).to_state()[0]],  # the wrong size
+    ],
+)
+def test_malformed_recent_shapes_are_refused(bad: object) -> None:
+    with pytest.raises(ValueError, match="recent shape"):
+        RecentShapes.from_state(bad)
