@@ -242,9 +242,11 @@ class ObjectsTracker:
         shape = grey.shape
         # a noisy frame smoothed once for every object, and what the session itself reads
         # of the frame's colours (who is in front, the change of light) read from it, as
-        # each object's tracker reads them (the frame itself on clean video)
+        # each object's tracker reads them (the frame itself on clean video); on frames
+        # tracked downscaled each tracker smooths its own working grid, if noisy there
         smoothing = Smoothing(image, grey)
-        colours = image if image.ndim == 2 else smoothing.of(image, grey)
+        downscaled = working_scale(shape, self.options.get("working_side", WORKING_SIDE))
+        colours = image if image.ndim == 2 or downscaled else smoothing.of(image, grey)
         silhouettes = {
             key: found
             for key, tracker in self.trackers.items()

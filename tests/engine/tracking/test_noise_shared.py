@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask, mask_iou, mask_to_contour, mask_to_contours
 from engine.testing.crowd import make_crowd
-from engine.tracking import ObjectsTracker, PiecesTracker
+from engine.tracking import ObjectsTracker, PiecesTracker, Tracker
 from engine.tracking.noise import Smoothing, denoised
 
 U8 = NDArray[np.uint8]
@@ -21,8 +21,8 @@ SIGMA = 12.0
 CROWD = make_crowd(seed=0, length=6)
 
 
-def noisy(frame: U8, seed: int) -> U8:
-    noise = np.random.default_rng(seed).normal(0.0, SIGMA, frame.shape)
+def noisy(frame: U8, seed: int, sigma: float = SIGMA) -> U8:
+    noise = np.random.default_rng(seed).normal(0.0, sigma, frame.shape)
     return np.asarray(np.clip(frame + noise, 0, 255), np.uint8)
 
 
@@ -98,3 +98,28 @@ def test_the_pieces_of_an_object_smooth_a_noisy_frame_once(
         calls.clear()
         tracker.step(noisy(frame, seed=t))
         assert len(calls) == 1
+
+
+def test_on_frames_tracked_downscaled_each_object_smooths_its_own_grid(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # 960 x 720: each object is tracked on a 640 x 480 working grid and smooths that, as
+    # it would alone; the session does not smooth the whole frame besides
+    scale = 1.5
+    frames = [
+        noisy(np.asarray(cv2.resize(f, None, fx=scale, fy=scale), np.uint8), seed=t, sigma=24.0)
+        for t, f in enumerate(CROWD.frames[:4])
+    ]
+    starts = {k: scale * mask_to_contour(CROWD.masks[k][0], 64) for k in (0, 3)}
+    calls = counting_filter(monkeypatch)
+    alone = [Tracker(nodes) for nodes in starts.values()]
+    for frame in frames:
+        for t in alone:
+            t.step(frame)
+    by_themselves = len(calls)
+    calls.clear()
+    together = ObjectsTracker(starts)
+    for frame in frames:
+        together.step(frame)
+    assert by_themselves >= len(starts) * (len(frames) - 1)  # they do smooth their grids
+    assert len(calls) == by_themselves
