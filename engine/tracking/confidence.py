@@ -397,8 +397,11 @@ def evidence(
     both = found_in and found_out
     inside = float(p[inner].mean()) if both else 0.5
     outside = float(p[ring].mean()) if both else 0.5
-    shape = 1.0 if outline is None else shape_overlap(nodes, outline)
-    seen = 0.0 if outline is None or recent is None else recent.overlap(nodes)
+    shape, seen = 1.0, 0.0
+    if outline is not None:  # the contour's shape made once, for the outline and the recent
+        mine, theirs = shape_mask(as_nodes(nodes)), shape_mask(as_nodes(outline))
+        shape = 0.0 if mine is None or theirs is None else float(mask_iou(mine, theirs))
+        seen = 0.0 if recent is None else recent.overlap(mine)
     if maps.motion is None or not both:
         return Evidence(inside, outside, settled, shape=shape, recent_shape=seen)
     # the log of the counted pixels only, not of the whole map

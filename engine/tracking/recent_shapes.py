@@ -113,17 +113,16 @@ class RecentShapes:
         self._shapes.append(shape_mask(nodes) if remember else None)
         del self._shapes[:-RECENT_FRAMES]
 
-    def overlap(self, nodes: NDArray[np.float64]) -> float:
-        """The best overlap of the contour's shape with the kept shapes, each moved to its
-        own centroid and scaled to the same area (as
-        :func:`~engine.tracking.confidence.shape_overlap`); 0 when none is kept."""
+    def overlap(self, shape: NDArray[np.bool_] | None) -> float:
+        """The best overlap of a contour's ``shape`` (its
+        :func:`~engine.tracking.confidence.shape_mask`, None: no area) with the kept shapes,
+        each moved to its own centroid and scaled to the same area; 0 when none is kept."""
         kept = [s for s in self._shapes if s is not None]
-        mine = shape_mask(nodes) if kept else None
-        if mine is None:
+        if shape is None or not kept:
             return 0.0
         stack = np.stack(kept)
-        union = np.count_nonzero(stack | mine, axis=(1, 2))
-        common = np.count_nonzero(stack & mine, axis=(1, 2))
+        union = np.count_nonzero(stack | shape, axis=(1, 2))  # mask_iou, all kept at once
+        common = np.count_nonzero(stack & shape, axis=(1, 2))
         return float(np.max(common / np.maximum(union, 1)))
 
     def to_state(self) -> list[str | None]:
