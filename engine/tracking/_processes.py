@@ -32,6 +32,7 @@ from engine.tracking.noise import Smoothing
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
+from engine.tracking.working import WorkingFrames
 
 __all__ = ["Remote", "Workers", "contours_of", "probability_of", "restore", "started"]
 
@@ -271,6 +272,7 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
     image: NDArray[np.uint8] | None = None
     grey: NDArray[np.uint8] | None = None
     shared: SharedMotion | None = None
+    working: WorkingFrames | None = None
     smoothing: Smoothing | None = None
     while True:
         try:
@@ -297,7 +299,8 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
                 offset = image.nbytes
                 grey = np.ndarray(grey_shape, np.uint8, buffer, offset).copy()
                 offset += grey.nbytes
-                smoothing = Smoothing(image, grey)  # once for this worker's objects
+                # smoothed, and brought down to the working grid, once for this worker's objects
+                smoothing, working = Smoothing(image, grey), WorkingFrames(image, grey)
                 shared = None
                 if motion is not None:
                     background, has_flow, lit = motion
@@ -316,7 +319,7 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
                 value = []
                 for ident, covered in message[1]:
                     tracker = trackers[ident]
-                    crowd = Crowd(covered, shared, smoothing)
+                    crowd = Crowd(covered, shared, smoothing, working)
                     value.append(tracker.step_prepared(image, grey, crowd))
             elif kind == "p":
                 value = probability_of(trackers[message[1]], message[2])

@@ -50,7 +50,7 @@ from engine.tracking.options import TrackerOptions
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
-from engine.tracking.working import WORKING_SIDE, working_scale
+from engine.tracking.working import WORKING_SIDE, WorkingFrames, working_scale
 
 __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
 
@@ -244,7 +244,7 @@ class ObjectsTracker:
         # of the frame's colours (who is in front, the change of light) read from it, as
         # each object's tracker reads them (the frame itself on clean video); on frames
         # tracked downscaled each tracker smooths its own working grid, if noisy there
-        smoothing = Smoothing(image, grey)
+        smoothing, working = Smoothing(image, grey), WorkingFrames(image, grey)
         downscaled = working_scale(shape, self.options.get("working_side", WORKING_SIDE))
         colours = image if image.ndim == 2 or downscaled else smoothing.of(image, grey)
         silhouettes = {
@@ -271,7 +271,7 @@ class ObjectsTracker:
             covers = {
                 key: self._covered(key, in_front, silhouettes, results, shape) for key in wave
             }
-            done = self._step_wave(image, grey, wave, covers, shared, smoothing)
+            done = self._step_wave(image, grey, wave, covers, shared, smoothing, working)
             results.update(zip(wave, done, strict=True))
             waiting = [k for k in waiting if k not in results]
         out = []
@@ -316,16 +316,19 @@ class ObjectsTracker:
         covers: Mapping[Hashable, NDArray[np.bool_] | None],
         shared: SharedMotion | None,
         smoothing: Smoothing,
+        working: WorkingFrames,
     ) -> list[Any]:
         """Track the objects of ``wave`` (on the worker processes, or the pool of threads,
-        when there is one; each process smooths a noisy frame once for its objects)."""
+        when there is one; each process smooths a noisy frame, and brings a large one down
+        to the working grid, once for its objects)."""
         if self._workers is not None:
             return self._workers.step([(self.trackers[k], covers[k]) for k in wave])
 
         def one(key: Hashable) -> Any:
             tracker = self.trackers[key]
             assert not isinstance(tracker, Remote)
-            return tracker.step_prepared(image, grey, Crowd(covers[key], shared, smoothing))
+            crowd = Crowd(covers[key], shared, smoothing, working)
+            return tracker.step_prepared(image, grey, crowd)
 
         if self.workers > 1 and len(wave) > 1:
             if self._pool is None:

@@ -25,6 +25,7 @@ from engine.tracking.noise import Smoothing
 from engine.tracking.result import TrackResult
 from engine.tracking.shared import Crowd
 from engine.tracking.tracker import Tracker
+from engine.tracking.working import WorkingFrames
 
 __all__ = ["PiecesResult", "PiecesTracker"]
 
@@ -106,10 +107,13 @@ class PiecesTracker:
         crowd: Crowd | None = None,
     ) -> PiecesResult:
         """:meth:`step` on a frame checked and converted once (:meth:`Tracker.step_prepared`,
-        ``crowd`` as there).  A noisy frame is smoothed once for all the pieces."""
+        ``crowd`` as there).  A noisy frame is smoothed once for all the pieces, and a frame
+        tracked downscaled brought down once."""
         crowd = crowd or Crowd()
         if crowd.smoothing is None:
             crowd = replace(crowd, smoothing=Smoothing(image, grey))
+        if crowd.working is None:
+            crowd = replace(crowd, working=WorkingFrames(image, grey))
         pieces = [t.step_prepared(image, grey, crowd) for t in self.trackers]
         weights = np.array([abs(polygon_area(p.nodes)) for p in pieces]) + 1.0
         confidence = float(np.dot(weights, [p.confidence for p in pieces]) / weights.sum())

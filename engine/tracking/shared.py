@@ -25,6 +25,7 @@ from engine.tracking.background import frame_background
 from engine.tracking.flow import FlowField, dense_flow
 from engine.tracking.motion import FramePair
 from engine.tracking.noise import Smoothing
+from engine.tracking.working import WorkingFrames
 
 __all__ = ["Crowd", "SharedLight", "SharedMotion"]
 
@@ -114,11 +115,16 @@ class Crowd:
     smoothing : Smoothing or None
         The frame smoothed of its sensor noise once for all the trackers that step on it
         (:mod:`engine.tracking.noise`; None: each smooths its own).
+    working : WorkingFrames or None
+        The frame brought down to the working grid once for all the trackers that track
+        it downscaled, each grid smoothed once (:mod:`engine.tracking.working`; None:
+        each makes its own).
     """
 
     covered: NDArray[np.bool_] | None = None
     shared: SharedMotion | None = None
     smoothing: Smoothing | None = None
+    working: WorkingFrames | None = None
 
     def motion_keywords(self) -> dict[str, NDArray[np.bool_] | SharedMotion]:
         """The keywords a motion model is given (only those set: a model that takes

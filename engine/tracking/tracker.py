@@ -378,9 +378,13 @@ class Tracker:
         if grey.shape != self._frame_shape:
             self._regrid((grey.shape[0], grey.shape[1]))
         with _repeatable_opencv():
-            scale = self._scale
+            scale, smoothing = self._scale, crowd.smoothing
             if scale is not None:  # on the working grid; the shared measures are the frame's
-                image, grey = _as_frame(scale.image(image))
+                if crowd.working is None:
+                    image, grey = _as_frame(scale.image(image))
+                    smoothing = None
+                else:  # brought down (and smoothed) once for the trackers of the frame
+                    image, grey, smoothing = crowd.working.at(scale, image, grey)
                 covered = None if covered is None else scale.mask(covered)
                 shared = None
             if shared is not None and not shared.applies_to(self._previous, grey):
@@ -397,7 +401,6 @@ class Tracker:
                 if shared is not None:  # the frame's light was measured on its grey
                     shared = dataclasses.replace(shared, light=None)
             else:  # the colours, not the sensor's noise (clean video: the frame itself)
-                smoothing = crowd.smoothing
                 image = denoised(image, grey) if smoothing is None else smoothing.of(image, grey)
             return self._step(image, grey, Crowd(covered, shared), textured, grey_frame)
 

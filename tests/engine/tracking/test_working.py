@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import cv2
@@ -11,8 +12,9 @@ from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
 from engine.testing.crowd import make_crowd
-from engine.tracking import ObjectsTracker, Tracker
-from engine.tracking.working import WORKING_SIDE, downscale, working_scale
+from engine.tracking import ObjectsTracker, PiecesTracker, Tracker, working
+from engine.tracking._frames import as_frame
+from engine.tracking.working import WORKING_SIDE, WorkingFrames, downscale, working_scale
 from tests.engine.tracking.moving_disc import H, W, assert_same, initial, run, through_json
 
 U8 = NDArray[np.uint8]
@@ -244,6 +246,77 @@ def test_several_objects_on_large_frames_are_tracked_in_frame_pixels() -> None:
             assert r.id == k
             overlaps[k, t] = mask_iou(contour_to_mask(r.contours[0], shape), masks[k][t])
     assert (overlaps[:, 1:].mean(axis=1) >= 0.9).all()
+
+
+def counting_downscale(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Count the frames brought down to a working grid."""
+    calls: list[int] = []
+    real = working.downscale
+
+    def counted(image: U8, size: tuple[int, int]) -> U8:
+        calls.append(1)
+        return real(image, size)
+
+    monkeypatch.setattr(working, "downscale", counted)
+    return calls
+
+
+def test_one_working_grid_a_frame_serves_every_tracker_stepping_on_it() -> None:
+    frame = upscaled(make_crowd(seed=3, count=1, length=1).frames[0])
+    image, grey = as_frame(frame)
+    scale = working_scale(grey.shape, WORKING_SIDE)
+    assert scale is not None
+    frames = WorkingFrames(image, grey)
+    with ThreadPoolExecutor(4) as pool:
+        grids = list(pool.map(lambda _: frames.at(scale, image, grey), range(8)))
+    assert all(g is grids[0] for g in grids)  # one tuple: one image, grey and smoothing
+    small, small_grey, smoothing = grids[0]
+    want, want_grey = as_frame(downscale(image, scale.size))
+    np.testing.assert_array_equal(small, want)
+    np.testing.assert_array_equal(small_grey, want_grey)
+    assert smoothing.of(small, small_grey) is small  # clean: the grid itself
+    # another frame (not the one it was made for) is brought down anew, not mistaken for it
+    other, other_grey = as_frame(np.ascontiguousarray(frame[:, ::-1]))
+    flipped = frames.at(scale, other, other_grey)[0]
+    np.testing.assert_array_equal(flipped, as_frame(downscale(other, scale.size))[0])
+
+
+@pytest.mark.parametrize("pieces", [False, True])
+def test_several_trackers_on_a_large_frame_bring_it_down_once_and_track_as_alone(
+    monkeypatch: pytest.MonkeyPatch, pieces: bool
+) -> None:
+    crowd = make_crowd(seed=3, count=3, length=5)
+    frames = [upscaled(f) for f in crowd.frames]
+    shape = frames[0].shape[:2]
+    starts = {
+        k: mask_to_contour(cv2.resize(crowd.masks[k][0], shape[::-1], interpolation=0), 64)
+        for k in range(3)
+    }
+
+    def session() -> ObjectsTracker | PiecesTracker:
+        if pieces:  # one object in three pieces
+            return PiecesTracker(list(starts.values()))
+        return ObjectsTracker(starts)
+
+    def contours(found: Any) -> list[NDArray[np.float64]]:
+        if pieces:
+            return list(found.contours)
+        return [c for r in found for c in r.contours]
+
+    # each tracker making its own grid, as alone
+    monkeypatch.setattr(WorkingFrames, "at", lambda self, s, i, g: working._grid(s, i))
+    own = session()
+    want = [contours(own.step(f)) for f in frames]
+    monkeypatch.undo()
+    calls = counting_downscale(monkeypatch)
+    shared = session()
+    for frame, expected in zip(frames, want, strict=True):
+        calls.clear()
+        got = contours(shared.step(frame))
+        assert len(calls) == 1
+        assert len(got) == len(expected)
+        for a, b in zip(got, expected, strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 @pytest.mark.parametrize(("shape", "side"), [((0, 640), 480), ((480,), 480), ((720, 1280), -1)])
