@@ -83,45 +83,21 @@ and with the shapes of the last frames on the object (:attr:`Evidence.judged_sha
 usually are for this object (:attr:`Evidence.usual_inside`, :attr:`Evidence.usual_outside`).
 Fitted by cross-entropy to the IoU of every scored frame of the thirty DAVIS-2016
 training sequences tracked with the default options from five node counts (10,095
-frames; ``python -m bench.tracking.confidence`` prints the fit, whose bias -3.9438 is
-raised by 0.2614 so that the rule's threshold, which keeps 99 % of their good frames
-``tracking``, falls on :data:`TRACKING_FROM`; refitted on 2026-11-30, morning, when the
-recent shapes were added: the tracks are as before, the shape input changed.  The
-inside's weight fell from 4.90 to 2.45 and the shape's rose from 2.65 to 3.60: a
-well-tracked object keeps a shape like its last frames', and the inside's colour no
-longer stands in for it.  Before, the model was
-:data:`engine.tracking.recent_shapes.OUTLINE_COEFFICIENTS`, refitted
-on 2026-11-29, night, when a re-acquisition began to carry the nodes' hold by shape
-(:func:`engine.tracking.holding.carry_by_shape`: the tracks of the sequences with
-re-acquisitions changed, bmx-bumps' most), that late morning when the light's steps
-below a grey level began to be measured in full
-(:data:`engine.tracking._lighting_kernel.RECENTRE_PASSES`: the tracks of a few sequences
-changed), early that morning when wider strips were bridged
-(:data:`engine.tracking.beyond_band.BRIDGE_GAP`: the tracks of a few sequences changed,
-and the rule's threshold under the old model moved to 0.544), and that night when the
-remembered outline started turning with the object
-(:attr:`engine.tracking.options.TrackerOptions.turn_outline`: the shape's overlap with
-the outline, one of its inputs, reads it), on 2026-11-28, late night, when the colour
-histograms got 32 levels a channel
-(:attr:`engine.tracking.options.TrackerOptions.colour_bits`: the mean p(object) inside and
-in the ring, two of its inputs, read from them), the night before when large objects'
-edges were placed at full resolution,
-:attr:`engine.tracking.options.TrackerOptions.full_resolution_edges`, and before that the
-same day when gaps that opened inside the object were left out (``carve_gaps``); on 2026-11-27,
-night, when the part beyond a thin strip was taken back (``bridge_strips``), and late, when
-background the object uncovered stopped being taken for covered and the usual look was
-added).  On five folds of those sequences, fitted on four and scored on the fifth,
-the mean |confidence - IoU| is 0.086 (0.089 with the outline alone), and 0.091 on the
-five validation sequences as shipped.  The
-shape is what tells a contour that slid onto object-coloured background, or shrank onto
-one part of the object, from one on the object: both look object-like inside
-(2026-11-27, see ``docs/tracking-log.md``; without it, on the tracks of that day, 0.111
-and 0.096).  The usual look tells how object-like the surroundings of *this* object
-are: a ring at p = 0.47 is a contour slid onto a banner of the rider's colours when it
-was 0.2 at the start, and an object among its own colours when it always was; read
-together, the two weights say "the inside as it is, the ring compared with its usual"
-(on the tracks of the day they were added, held out: 69.7 % of the bad frames flagged
-without them, 85.6 % with them)."""
+frames; ``python -m bench.tracking.confidence`` prints the fit), its bias -3.9438 raised
+by 0.2614 so that the rule's threshold, which keeps 99 % of their good frames
+``tracking``, falls on :data:`TRACKING_FROM`.  Refitted whenever the tracks or an input
+change; last on 2026-11-30, morning, when the recent shapes were added (the inside's
+weight fell from 4.90 to 2.45 and the shape's rose from 2.65 to 3.60: a well-tracked
+object keeps a shape like its last frames', and the inside's colour no longer stands in
+for it).  Every refit and its figures: ``docs/tracking-log.md``, "The confidence model's
+refits".  On five folds of those sequences, fitted on four and scored on the fifth, the
+mean |confidence - IoU| is 0.086, and 0.091 on the five validation sequences as shipped.
+The shape is what tells a contour that slid onto object-coloured background, or shrank
+onto one part of the object, from one on the object: both look object-like inside.  The
+usual look tells how object-like the surroundings of *this* object are: a ring at
+p = 0.47 is a contour slid onto a banner of the rider's colours when it was 0.2 at the
+start, and an object among its own colours when it always was; read together, the two
+weights say "the inside as it is, the ring compared with its usual"."""
 GREY_COEFFICIENTS = (
     -2.9823,
     0.0207,
@@ -172,46 +148,18 @@ this stands in only for an :class:`Evidence` built without one."""
 TRACKING_FROM = 0.540
 """Confidence from which a frame is reported ``tracking``: the shipped model's threshold
 that keeps 99 % of the thirty training sequences' frames with IoU >= 0.6 ``tracking``
-(five node counts; the model's bias set so that it stays 0.540).  Since the recent shapes
-(2026-11-30, morning, :mod:`engine.tracking.recent_shapes`), the whole rule judged on
-folds it was not chosen on (the share chosen within the four others, the model refitted
-there): 96.7 % of 8,639 good frames ``tracking`` and 94.0 % of 298 bad ones not
-(bmx-bumps' fold flags 94.9 % of its 256); as shipped, 98.1 % and 96.0 % on the thirty,
-97.8 % of 1,161 and 81.2 % (13 of 16) on the five validation sequences, never tuned on.
-Before, with the outline alone, the rule kept 97.5 %
-(98 % before the refit of 2026-11-29, night; set that evening, once
-the study marked every frame on probation after a jump as capped,
-:attr:`engine.tracking.Tracker.unconfirmed`, instead of only those whose model
-confidence exceeded the cap; the rule returns it unchanged on its own output).
-The share is chosen by cross-validation on the thirty, as the one of 97.5 / 98 / 98.5 /
-99 % whose rule, fitted on folds and scored on the others, clears the two goals (95 % of
-those frames ``tracking``, 80 % of those with IoU < 0.2 not) by the most (``python -m
-bench.tracking.confidence``).  On the tracks since a re-acquisition carries the hold by
-shape (2026-11-29, night; the rule now keeps 97.5 %, the model refitted so that its
-threshold stays 0.540), the whole rule judged on folds it was not chosen on (the share
-chosen within the four others, the model refitted there): 95.6 % of 8,639 and 78.5 % of
-298 held out, the second short of its goal (bmx-bumps' fold, with most of the bad
-frames, flags 76.2 % of its 256).  As shipped: 96.7 % and 97.3 % on the thirty, 94.0 %
-of 1,161 and 81.2 % (13 of 16) on the five validation sequences, never tuned on; the
-first short of its goal: most of breakdance's good frames are reported ``uncertain``
-(the dancer's shape far from the first frame's outline).  Before that refit: 95.4 % and
-85.5 % of 269 held out, the five 92.7 % and 27 of 37.  (The threshold caps the frames on
-probation after a re-acquisition that jumped, which then do not count in choosing it.)
-Before this 0.550, with the frames on probation marked only where the model's confidence
-exceeded the cap (96.3 % and 84.4 % held out then; 96.9 / 97.0 % on the thirty and 91.3 %
-/ 31 of 37 on the five as shipped; 2026-11-29, late morning, with the light's small steps
-measured in full).
-Before that 0.540 (95.7 % and 79.3 % of 276 held out, 2026-11-29, early morning,
-with strips up to 15 px bridged; the five 93.6 % and 34 of 37), 0.536 before that (95.7 %
-and 81.5 % held out, 2026-11-29, night, with the outline turning; the five 95.2 % and 33
-of 33), 0.535 before that (95.5 % and 85.3 % held out,
-2026-11-28, late night, with 32 colour levels; unrefitted, the turning outline kept
-92.3 % of the five's good frames ``tracking``), 0.505 before that (96.2 % and 88.9 %
-held out at 16 colour levels), 0.5 before that (96.0 % and 87.1 % held out on the tracks
-before the alignment), and 0.499 when every re-acquisition was on probation (95.2 % and
-86.8 %); before that 0.476, then 0.478, then 0.472 (the rule alternated between it and
-0.470), 0.537 before that (the rule then chose 97.5 %), 0.495 before the one before,
-and 0.498 before the shape was judged."""
+(five node counts; the model's bias set so that it stays 0.540).  The share is chosen by
+cross-validation on the thirty, as the one of 97.5 / 98 / 98.5 / 99 % whose rule, fitted
+on folds and scored on the others, clears the two goals (95 % of those frames
+``tracking``, 80 % of those with IoU < 0.2 not) by the most (``python -m
+bench.tracking.confidence``).  The whole rule judged on folds it was not chosen on (the
+share chosen within the four others, the model refitted there): 96.7 % of 8,639 good
+frames ``tracking`` and 94.0 % of 298 bad ones not (bmx-bumps' fold flags 94.9 % of its
+256); as shipped, 98.1 % and 96.0 % on the thirty, 97.8 % of 1,161 and 81.2 % (13 of 16)
+on the five validation sequences, never tuned on.  The threshold caps the frames on
+probation after a re-acquisition that jumped, which then do not count in choosing it.
+Its earlier values and their figures: ``docs/tracking-log.md``, "The confidence model's
+refits"."""
 UNCONFIRMED = TRACKING_FROM - 1e-3
 """The most a contour that is not to be reported ``tracking`` gets: just below it."""
 EMPTY_BELOW = BACKGROUND_BELOW
