@@ -243,7 +243,8 @@ class ObjectsTracker:
         # a noisy frame smoothed once for every object, and what the session itself reads
         # of the frame's colours (who is in front, the change of light) read from it, as
         # each object's tracker reads them (the frame itself on clean video); on frames
-        # tracked downscaled each tracker smooths its own working grid, if noisy there
+        # tracked downscaled the working grid is made, and smoothed if noisy there, once for
+        # the trackers (``working``), and the session reads the frame as it is
         smoothing, working = Smoothing(image, grey), WorkingFrames(image, grey)
         downscaled = working_scale(shape, self.options.get("working_side", WORKING_SIDE))
         colours = image if image.ndim == 2 or downscaled else smoothing.of(image, grey)

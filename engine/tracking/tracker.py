@@ -361,8 +361,10 @@ class Tracker:
         :class:`~engine.tracking.ObjectsTracker`: the pixels other objects in front of
         this one hide (:mod:`engine.tracking.covering`) and the background's motion
         and dense flow measured once over the whole frame (:mod:`engine.tracking.shared`;
-        used when measured between this tracker's previous frame and ``grey``), and the
-        frame smoothed of its noise once for all (:class:`engine.tracking.noise.Smoothing`).
+        used when measured between this tracker's previous frame and ``grey``), the frame
+        smoothed of its noise once for all (:class:`engine.tracking.noise.Smoothing`), and,
+        on a frame tracked downscaled, brought down to the working grid once for all
+        (:class:`engine.tracking.working.WorkingFrames`).
 
         Raises
         ------
