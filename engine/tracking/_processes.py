@@ -32,7 +32,7 @@ from engine.tracking.noise import Smoothing
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
-from engine.tracking.working import WorkingFrames
+from engine.tracking.working import WorkingFrames, WorkingScale
 
 __all__ = ["Remote", "Workers", "contours_of", "probability_of", "restore", "started"]
 
@@ -120,9 +120,14 @@ class Workers:
         return answers
 
     def frame(
-        self, image: NDArray[np.uint8], grey: NDArray[np.uint8], shared: SharedMotion | None
+        self,
+        image: NDArray[np.uint8],
+        grey: NDArray[np.uint8],
+        shared: SharedMotion | None,
+        grid: WorkingScale | None = None,
     ) -> None:
-        """Hand this frame (and its shared motion) to every worker, through shared memory."""
+        """Hand this frame (and its shared motion, measured on the working ``grid`` if
+        given) to every worker, through shared memory."""
         flow = None if shared is None or shared.flow is None else shared.flow.flow
         parts: list[NDArray[Any]] = [image, grey]
         if shared is not None:  # measured from this previous frame: the workers get it too
@@ -149,7 +154,8 @@ class Workers:
         if shared is not None:
             light = shared.light
             lit = None if light is None else (light.sample, light.step)
-            motion = (shared.background, flow is not None, lit)
+            on = None if grid is None else (grid.frame_shape, grid.size)
+            motion = (shared.background, flow is not None, lit, on)
         for index in range(self.count):
             self.send(index, ("frame", block.name, layout, motion))
         self.gather(range(self.count))
@@ -303,15 +309,18 @@ def _serve(pipe: Connection) -> None:  # pragma: no cover - runs in the worker p
                 smoothing, working = Smoothing(image, grey), WorkingFrames(image, grey)
                 shared = None
                 if motion is not None:
-                    background, has_flow, lit = motion
-                    last = np.ndarray(grey_shape, np.uint8, buffer, offset).copy()
+                    background, has_flow, lit, on = motion
+                    current = grey  # measured on the frame, or on the trackers' working grid
+                    if on is not None:
+                        current = working.at(WorkingScale(*on), image, grey)[1]
+                    last = np.ndarray(current.shape, np.uint8, buffer, offset).copy()
                     offset += last.nbytes
                     flow = None
                     if has_flow:
                         vectors = np.ndarray(flow_shape, np.float32, buffer, offset).copy()
-                        flow = FlowField(FramePair.whole(last, grey), vectors)
+                        flow = FlowField(FramePair.whole(last, current), vectors)
                     light = None if lit is None else SharedLight(*lit)
-                    shared = SharedMotion(last, grey, background, flow, light)
+                    shared = SharedMotion(last, current, background, flow, light)
                 value = None
             elif kind == "step":
                 assert image is not None

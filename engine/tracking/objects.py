@@ -50,7 +50,7 @@ from engine.tracking.options import TrackerOptions
 from engine.tracking.pieces import PiecesTracker
 from engine.tracking.shared import Crowd, SharedLight, SharedMotion
 from engine.tracking.tracker import Tracker
-from engine.tracking.working import WORKING_SIDE, WorkingFrames, working_scale
+from engine.tracking.working import WORKING_SIDE, WorkingFrames, WorkingScale, working_scale
 
 __all__ = ["ObjectResult", "ObjectsTracker", "label_mask"]
 
@@ -244,10 +244,18 @@ class ObjectsTracker:
         # of the frame's colours (who is in front, the change of light) read from it, as
         # each object's tracker reads them (the frame itself on clean video); on frames
         # tracked downscaled the working grid is made, and smoothed if noisy there, once for
-        # the trackers (``working``), and the session reads the frame as it is
+        # the trackers (``working``), and who is in front is read from the frame as it is
         smoothing, working = Smoothing(image, grey), WorkingFrames(image, grey)
         downscaled = working_scale(shape, self.options.get("working_side", WORKING_SIDE))
         colours = image if image.ndim == 2 or downscaled else smoothing.of(image, grey)
+        # the whole frame's motion and light are measured where the trackers read them: on
+        # the frame, or on the working grid they are all tracked on
+        if downscaled is None:
+            measured_on = (colours, grey)
+        else:
+            small, small_grey, grid_smoothing = working.at(downscaled, image, grey)
+            grid_colours = small if small.ndim == 2 else grid_smoothing.of(small, small_grey)
+            measured_on = (grid_colours, small_grey)
         silhouettes = {
             key: found
             for key, tracker in self.trackers.items()
@@ -259,10 +267,10 @@ class ObjectsTracker:
             return probability_of(self.trackers[key], colours[y0:y1, x0:x1])
 
         in_front, self._order = fronts(silhouettes, probability, self._order)
-        shared = self._shared(colours, grey, silhouettes)
+        shared = self._shared(*measured_on, silhouettes, downscaled)
         if self._workers is not None and self.trackers:
-            self._workers.frame(image, grey, shared)
-        self._previous = grey
+            self._workers.frame(image, grey, shared, downscaled)
+        self._previous = measured_on[1]
         results: dict[Hashable, Any] = {}
         waiting = list(self.trackers)
         while waiting:
@@ -287,15 +295,13 @@ class ObjectsTracker:
         image: NDArray[np.uint8],
         grey: NDArray[np.uint8],
         silhouettes: Mapping[Hashable, Silhouette],
+        scale: WorkingScale | None = None,
     ) -> SharedMotion | None:
         """The whole frame's background motion, flow and change of light, when two or more
         objects go on from the last frame (one object measures around itself, as a tracker
-        alone).  None on frames tracked downscaled (:mod:`engine.tracking.working`): each
-        tracker then measures on its own working grid."""
+        alone).  On frames tracked downscaled, ``scale`` given, ``image`` and ``grey`` are
+        the working grid's (:mod:`engine.tracking.working`), and so are the measures."""
         previous, light = self._previous, None
-        if working_scale(grey.shape, self.options.get("working_side", WORKING_SIDE)) is not None:
-            self._light = None
-            return None
         if len(silhouettes) >= 2 and self.options.get("lighting", True) is not False:
             sample, step = Lighting.whole(self._light, image)
             light = SharedLight(sample, step) if self._light is not None else None
@@ -304,9 +310,11 @@ class ObjectsTracker:
             self._light = None
         if len(silhouettes) < 2 or previous is None or previous.shape != grey.shape:
             return None
-        excluded = np.zeros(grey.shape, np.bool_)
+        excluded = np.zeros(grey.shape if scale is None else scale.frame_shape, np.bool_)
         for silhouette in silhouettes.values():
             silhouette.paint(excluded)
+        if scale is not None:
+            excluded = scale.mask(excluded)
         return SharedMotion.measure(previous, grey, excluded, light)
 
     def _step_wave(

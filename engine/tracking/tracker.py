@@ -381,14 +381,13 @@ class Tracker:
             self._regrid((grey.shape[0], grey.shape[1]))
         with _repeatable_opencv():
             scale, smoothing = self._scale, crowd.smoothing
-            if scale is not None:  # on the working grid; the shared measures are the frame's
+            if scale is not None:  # on the working grid (the shared measures too, if theirs)
                 if crowd.working is None:
                     image, grey = _as_frame(scale.image(image))
                     smoothing = None
                 else:  # brought down (and smoothed) once for the trackers of the frame
                     image, grey, smoothing = crowd.working.at(scale, image, grey)
                 covered = None if covered is None else scale.mask(covered)
-                shared = None
             if shared is not None and not shared.applies_to(self._previous, grey):
                 shared = None
             grey_frame = is_grey(image)

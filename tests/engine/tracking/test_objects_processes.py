@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
+import cv2
 import numpy as np
 import pytest
 
@@ -49,6 +50,20 @@ def test_objects_on_two_processes_track_exactly_as_in_this_one(
         behind += sum(bool(r.behind) for r in here)
     assert behind  # the comparison covered objects tracked behind others
     assert remote.to_state() == local.to_state()
+
+
+def test_objects_on_large_frames_track_on_processes_exactly_as_in_this_one() -> None:
+    # 960 x 720: tracked on the 640 x 480 working grid, the whole frame's motion measured
+    # there once and read by each worker's trackers from its own copy of the grid
+    frames = [np.asarray(cv2.resize(f, None, fx=1.5, fy=1.5), np.uint8) for f in CROWD.frames]
+    starts = {k: 1.5 * nodes + 0.25 for k, nodes in STARTS.items()}
+    local = ObjectsTracker(starts)
+    there = ObjectsTracker(starts, workers=2, processes=True)
+    try:
+        for frame in frames[:12]:
+            assert same(local.step(frame), there.step(frame))
+    finally:
+        there.close()
 
 
 def test_adding_correcting_and_removing_mid_stream_on_processes(remote: ObjectsTracker) -> None:

@@ -319,6 +319,36 @@ def test_several_trackers_on_a_large_frame_bring_it_down_once_and_track_as_alone
             np.testing.assert_array_equal(a, b)
 
 
+def test_objects_on_large_frames_read_the_motion_measured_once_on_the_grid(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """As on frames tracked as they are, the background's motion and the flow of the whole
+    grid are measured once for the objects, which read them instead of measuring their own."""
+    from engine.tracking.prediction import FlowMotion
+
+    crowd = make_crowd(seed=3, count=3, length=5)
+    frames = [upscaled(f) for f in crowd.frames]
+    shape = frames[0].shape[:2]
+    starts = {
+        k: mask_to_contour(cv2.resize(crowd.masks[k][0], shape[::-1], interpolation=0), 64)
+        for k in range(3)
+    }
+    read: list[bool] = []
+    predict = FlowMotion.predict
+
+    def reading(self: FlowMotion, *args: Any, **kwargs: Any) -> Any:
+        shared = kwargs.get("shared")
+        read.append(shared is not None and shared.current.shape == crowd.frames[0].shape[:2])
+        return predict(self, *args, **kwargs)
+
+    monkeypatch.setattr(FlowMotion, "predict", reading)
+    tracker = ObjectsTracker(starts)
+    for frame in frames:
+        tracker.step(frame)
+    # the first frame starts them; from the second on each reads the grid's measures
+    assert read == [True] * 3 * (len(frames) - 1)
+
+
 @pytest.mark.parametrize(("shape", "side"), [((0, 640), 480), ((480,), 480), ((720, 1280), -1)])
 def test_working_scale_refuses_a_bad_shape_or_side(shape: tuple[int, ...], side: int) -> None:
     with pytest.raises(ValueError, match="must be"):
