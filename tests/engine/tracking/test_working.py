@@ -349,6 +349,26 @@ def test_objects_on_large_frames_read_the_motion_measured_once_on_the_grid(
     assert read == [True] * 3 * (len(frames) - 1)
 
 
+def test_objects_on_large_frames_resume_from_a_state_exactly() -> None:
+    """The session's last grid (what the shared motion is measured from) comes back with the
+    objects' states: the resumed session measures, and tracks, as the one that went on."""
+    crowd = make_crowd(seed=3, count=3, length=6)
+    frames = [upscaled(f) for f in crowd.frames]
+    shape = frames[0].shape[:2]
+    starts = {
+        k: mask_to_contour(cv2.resize(crowd.masks[k][0], shape[::-1], interpolation=0), 64)
+        for k in range(3)
+    }
+    tracker = ObjectsTracker(starts)
+    for frame in frames[:3]:
+        tracker.step(frame)
+    resumed = ObjectsTracker.from_state(through_json(tracker.to_state()))
+    for frame in frames[3:]:
+        for a, b in zip(tracker.step(frame), resumed.step(frame), strict=True):
+            assert (a.id, a.confidence) == (b.id, b.confidence)
+            np.testing.assert_array_equal(a.contours[0], b.contours[0])
+
+
 @pytest.mark.parametrize(("shape", "side"), [((0, 640), 480), ((480,), 480), ((720, 1280), -1)])
 def test_working_scale_refuses_a_bad_shape_or_side(shape: tuple[int, ...], side: int) -> None:
     with pytest.raises(ValueError, match="must be"):
