@@ -20,6 +20,8 @@ from tests.engine.tracking.moving_disc import H, W, assert_same, initial, run, t
 U8 = NDArray[np.uint8]
 F64 = NDArray[np.float64]
 UP = 2
+GRID_H, GRID_W = 480, 640
+"""The working grid of the generated crowd drawn up by :data:`UP`."""
 """The moving disc's frames drawn twice as large: tracked on a working grid of their
 original size (``working_side=H``), they are the original clip, give or take the resize."""
 
@@ -248,6 +250,19 @@ def test_several_objects_on_large_frames_are_tracked_in_frame_pixels() -> None:
     assert (overlaps[:, 1:].mean(axis=1) >= 0.9).all()
 
 
+def large_crowd(length: int) -> tuple[list[U8], dict[int, F64]]:
+    """Three generated objects drawn up to 960 x 1280 (a 480 x 640 working grid), and their
+    first contours."""
+    crowd = make_crowd(seed=3, count=3, length=length)
+    frames = [upscaled(f) for f in crowd.frames]
+    shape = frames[0].shape[:2]
+    starts = {
+        k: mask_to_contour(cv2.resize(crowd.masks[k][0], shape[::-1], interpolation=0), 64)
+        for k in range(3)
+    }
+    return frames, starts
+
+
 def counting_downscale(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """Count the frames brought down to a working grid."""
     calls: list[int] = []
@@ -285,13 +300,7 @@ def test_one_working_grid_a_frame_serves_every_tracker_stepping_on_it() -> None:
 def test_several_trackers_on_a_large_frame_bring_it_down_once_and_track_as_alone(
     monkeypatch: pytest.MonkeyPatch, pieces: bool
 ) -> None:
-    crowd = make_crowd(seed=3, count=3, length=5)
-    frames = [upscaled(f) for f in crowd.frames]
-    shape = frames[0].shape[:2]
-    starts = {
-        k: mask_to_contour(cv2.resize(crowd.masks[k][0], shape[::-1], interpolation=0), 64)
-        for k in range(3)
-    }
+    frames, starts = large_crowd(5)
 
     def session() -> ObjectsTracker | PiecesTracker:
         if pieces:  # one object in three pieces
@@ -326,19 +335,13 @@ def test_objects_on_large_frames_read_the_motion_measured_once_on_the_grid(
     grid are measured once for the objects, which read them instead of measuring their own."""
     from engine.tracking.prediction import FlowMotion
 
-    crowd = make_crowd(seed=3, count=3, length=5)
-    frames = [upscaled(f) for f in crowd.frames]
-    shape = frames[0].shape[:2]
-    starts = {
-        k: mask_to_contour(cv2.resize(crowd.masks[k][0], shape[::-1], interpolation=0), 64)
-        for k in range(3)
-    }
+    frames, starts = large_crowd(5)
     read: list[bool] = []
     predict = FlowMotion.predict
 
     def reading(self: FlowMotion, *args: Any, **kwargs: Any) -> Any:
         shared = kwargs.get("shared")
-        read.append(shared is not None and shared.current.shape == crowd.frames[0].shape[:2])
+        read.append(shared is not None and shared.current.shape == (GRID_H, GRID_W))
         return predict(self, *args, **kwargs)
 
     monkeypatch.setattr(FlowMotion, "predict", reading)
@@ -352,13 +355,7 @@ def test_objects_on_large_frames_read_the_motion_measured_once_on_the_grid(
 def test_objects_on_large_frames_resume_from_a_state_exactly() -> None:
     """The session's last grid (what the shared motion is measured from) comes back with the
     objects' states: the resumed session measures, and tracks, as the one that went on."""
-    crowd = make_crowd(seed=3, count=3, length=6)
-    frames = [upscaled(f) for f in crowd.frames]
-    shape = frames[0].shape[:2]
-    starts = {
-        k: mask_to_contour(cv2.resize(crowd.masks[k][0], shape[::-1], interpolation=0), 64)
-        for k in range(3)
-    }
+    frames, starts = large_crowd(6)
     tracker = ObjectsTracker(starts)
     for frame in frames[:3]:
         tracker.step(frame)
