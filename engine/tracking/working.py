@@ -168,8 +168,7 @@ class WorkingFrames:
     Parameters
     ----------
     image, grey : numpy.ndarray
-        The frame as :func:`engine.tracking._frames.as_frame` returns it: the
-        contiguous H x W x 3 BGR (or H x W grey) uint8 image and its grey version.
+        The frame, as :class:`~engine.tracking.noise.Smoothing` takes it.
     """
 
     def __init__(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> None:
