@@ -164,7 +164,8 @@ class Smoothing:
 
     def of(self, image: NDArray[np.uint8], grey: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """``denoised(image, grey)``: made once for the frame this was made for (the same
-        two arrays), anew for any other (a tracker's own downscaled working grid)."""
+        two arrays), anew for any other (a grid has its own,
+        :class:`engine.tracking.working.WorkingFrames`)."""
         if image is not self._image or grey is not self._grey:
             return denoised(image, grey)
         with self._lock:

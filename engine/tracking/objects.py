@@ -249,9 +249,9 @@ class ObjectsTracker:
         downscaled = working_scale(shape, self.options.get("working_side", WORKING_SIDE))
         colours = image if image.ndim == 2 or downscaled else smoothing.of(image, grey)
         # the whole frame's motion and light are measured where the trackers read them: on
-        # the frame, or on the working grid they are all tracked on
-        if downscaled is None:
-            measured_on = (colours, grey)
+        # the frame, or on the working grid they are all tracked on (none to track: the frame)
+        if downscaled is None or not self.trackers:
+            downscaled, measured_on = None, (colours, grey)
         else:
             small, small_grey, grid_smoothing = working.at(downscaled, image, grey)
             grid_colours = small if small.ndim == 2 else grid_smoothing.of(small, small_grey)

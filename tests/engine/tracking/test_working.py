@@ -14,7 +14,13 @@ from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
 from engine.testing.crowd import make_crowd
 from engine.tracking import ObjectsTracker, PiecesTracker, Tracker, working
 from engine.tracking._frames import as_frame
-from engine.tracking.working import WORKING_SIDE, WorkingFrames, downscale, working_scale
+from engine.tracking.working import (
+    WORKING_SIDE,
+    WorkingFrames,
+    WorkingScale,
+    downscale,
+    working_scale,
+)
 from tests.engine.tracking.moving_disc import H, W, assert_same, initial, run, through_json
 
 U8 = NDArray[np.uint8]
@@ -294,6 +300,13 @@ def test_one_working_grid_a_frame_serves_every_tracker_stepping_on_it() -> None:
     other, other_grey = as_frame(np.ascontiguousarray(frame[:, ::-1]))
     flipped = frames.at(scale, other, other_grey)[0]
     np.testing.assert_array_equal(flipped, as_frame(downscale(other, scale.size))[0])
+
+
+def test_a_working_grid_larger_than_the_frame_is_refused() -> None:
+    image, grey = as_frame(np.zeros((240, 320, 3), np.uint8))
+    too_large = WorkingScale((240, 320), (640, 480))  # a grid for another, larger frame
+    with pytest.raises(ValueError, match="size must be"):
+        WorkingFrames(image, grey).at(too_large, image, grey)
 
 
 @pytest.mark.parametrize("pieces", [False, True])
