@@ -17,10 +17,15 @@
 #   apt-get install -y podman runc buildah fuse-overlayfs uidmap debootstrap
 #
 # Environment: PYTHON (default .venv/bin/python), CONTAINER_CACHE_DIR (default
-# ~/.cache/efdm-container), IMAGE (default localhost/efdm-tracker:test; images are kept, as
-# podman's layer cache is what makes reruns fast), DEBIAN_MIRROR (default
+# ~/.cache/efdm-container), IMAGE (default localhost/efdm-tracker:test), DEBIAN_MIRROR (default
 # http://deb.debian.org/debian), PIP_CERT (CA bundle for pip in the build; default the
 # system's), SKIP_TOPOLOGY=1.
+#
+# Images: the base, the stand-in infra image, IMAGE and the dependency stages (tagged
+# $DEPS_IMAGE, so that reruns reuse podman's layer cache and pip runs only when the
+# dependencies change) are kept. Every build on a changed source leaves the previous image and
+# its stages untagged: they are removed after the build (only dangling images made on this
+# script's base, never other images of the host), or the disk fills within a few dozen runs.
 set -euo pipefail
 
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -31,6 +36,8 @@ export CONTAINERS_CONF="${CONTAINERS_CONF:-$here/containers.conf}"
 PYTHON=${PYTHON:-$root/.venv/bin/python}
 IMAGE=${IMAGE:-localhost/efdm-tracker:test}
 BASE_IMAGE=localhost/efdm-base:bookworm
+DEPS_IMAGE=localhost/efdm-tracker:deps-cache
+MIN_FREE_GIB=4  # a build that reinstalls the dependencies writes about 2 GiB of layers
 BASE_RECIPE=1  # bump when the base recipe below changes: the cached tarball is then rebuilt
 CACHE_DIR=${CONTAINER_CACHE_DIR:-${XDG_CACHE_HOME:-${HOME:-/root}/.cache}/efdm-container}
 BASE_TAR=$CACHE_DIR/bookworm-python3-r$BASE_RECIPE.tar.gz
@@ -114,15 +121,22 @@ else
 fi
 
 # ---------------------------------------------------------------- 2. build
-build_args=(--format docker --file docker/Dockerfile --tag "$IMAGE"
-            --build-arg "BASE_IMAGE=$BASE_IMAGE")
+store=$(podman info --format '{{.Store.GraphRoot}}')
+free_kib=$(df --output=avail -k "$store" | tail -1)
+[ "$free_kib" -ge $((MIN_FREE_GIB * 1024 * 1024)) ] \
+  || die "only $((free_kib / 1024)) MiB free under $store: a build needs $MIN_FREE_GIB GiB"
+build_args=(--format docker --file docker/Dockerfile --build-arg "BASE_IMAGE=$BASE_IMAGE")
 cert=${PIP_CERT:-/etc/ssl/certs/ca-certificates.crt}
 if [ -s "$cert" ]; then
   build_args+=(--secret "id=pip_cert,src=$cert")
 fi
-step "podman build ${build_args[*]} ."
-podman build --quiet "${build_args[@]}" . >/dev/null
+step "podman build ${build_args[*]} --tag $IMAGE ."
+podman build --quiet "${build_args[@]}" --target venv --tag "$DEPS_IMAGE" . >/dev/null
+podman build --quiet "${build_args[@]}" --tag "$IMAGE" . >/dev/null
 podman images --format '   {{.Repository}}:{{.Tag}} {{.ID}} {{.Size}}' "$IMAGE"
+# what earlier builds left untagged; the label comes from the base, so other images are spared
+removed=$(podman image prune --force --filter label=efdm.base.recipe | wc -l)
+step "removed $removed dangling images of earlier builds"
 
 
 # ---------------------------------------------------------------- 3. one container
