@@ -54,6 +54,9 @@ class Config(BaseConfig):
     davis_noise : float
         Deviation (levels) of the Gaussian noise added to every channel of the DAVIS
         frames before tracking (a noisy sensor's; 0: none).
+    davis_stride : int
+        Every how many frames of a DAVIS sequence are tracked and scored (1: all; 2: a
+        camera at half the frame rate, or a service dropping every other frame).
     """
 
     train_count: int | None
@@ -70,6 +73,7 @@ class Config(BaseConfig):
     davis_grey: bool = False
     davis_tint: bool = False
     davis_noise: float = 0.0
+    davis_stride: int = 1
 
 
 FULL = Config("full", None, None, None, None, 40, None, 15, synthetic_seeds=3)

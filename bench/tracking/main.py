@@ -31,7 +31,9 @@ F`` (the DAVIS frames and masks resized by F before tracking and scoring: 1.5 an
 720- and 1080-line views of the same scenes), ``--grey`` (the DAVIS frames turned grey, as
 a grey camera gives them), ``--tint`` (in a sepia tone through YUV 4:2:0, as a monochrome
 camera with a warm cast gives them), ``--noise SIGMA`` (Gaussian noise of SIGMA grey
-levels added to every channel of the DAVIS frames, as a noisy sensor gives them).
+levels added to every channel of the DAVIS frames, as a noisy sensor gives them),
+``--stride K`` (one DAVIS frame in K tracked and scored, the masks alike: a camera at 1/K
+of the frame rate, or a service that drops frames it cannot keep up with).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -73,6 +75,9 @@ MIN_RESIZE, MAX_RESIZE = 0.25, 4.0
 """Resize factors of ``--resize``: 120 to 1920 lines from DAVIS's 480."""
 MAX_NOISE = 64.0
 """Largest ``--noise`` deviation: a quarter of the range, far beyond any camera's."""
+MAX_STRIDE = 8
+"""Largest ``--stride``: 3 frames a second from DAVIS's 24, the shortest sequence still
+scored on 7 frames."""
 TIMED_ORDER = ("davis-val", "davis-train", "synthetic")
 """The set whose timings are the speed figures: the first of these that runs."""
 
@@ -136,7 +141,9 @@ def run_plain(config: Config, args: argparse.Namespace) -> Results:
         notes.append(f"requested but not found (or their set skipped): {', '.join(unknown)}")
         log(notes[-1])
     ordered = {name: sets.get(name, []) for name in SETS if name in args.sets}
-    sheets = write_sheets(ordered, config.davis_sheets, config.synthetic_sheets, args.out)
+    sheets = write_sheets(
+        ordered, config.davis_sheets, config.synthetic_sheets, args.out, config.davis_stride
+    )
     partial = tuple(n for n, (specs, _) in chosen.items() if is_partial(config, n, specs))
     return Results(
         config=config,
@@ -184,6 +191,8 @@ def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
         config = dataclasses.replace(config, davis_tint=True)
     if args.noise:
         config = dataclasses.replace(config, davis_noise=args.noise)
+    if args.stride != 1:
+        config = dataclasses.replace(config, davis_stride=args.stride)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -232,13 +241,15 @@ def choices(allowed: Sequence[str]) -> Any:
     return parse
 
 
-def count(least: int) -> Any:
-    """An argparse type: an integer of at least ``least``."""
+def count(least: int, most: int | None = None) -> Any:
+    """An argparse type: an integer of at least ``least`` (and at most ``most``)."""
 
     def parse(text: str) -> int:
         value = int(text)
         if value < least:
             raise argparse.ArgumentTypeError(f"must be at least {least}; got {value}")
+        if most is not None and value > most:
+            raise argparse.ArgumentTypeError(f"must be at most {most}; got {value}")
         return value
 
     return parse
@@ -270,8 +281,8 @@ def noise_level(text: str) -> float:
 
 def arguments(parser: argparse.ArgumentParser) -> None:
     """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
-    ``--seeds``, ``--length``, ``--resize``, ``--grey``, ``--tint``, ``--noise`` and
-    ``--nodes``."""
+    ``--seeds``, ``--length``, ``--resize``, ``--grey``, ``--tint``, ``--noise``,
+    ``--stride`` and ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -326,6 +337,14 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SIGMA",
         help="add Gaussian noise of SIGMA grey levels to every channel of the DAVIS frames "
         "before tracking (a noisy sensor; default 0)",
+    )
+    parser.add_argument(
+        "--stride",
+        type=count(1, MAX_STRIDE),
+        default=1,
+        metavar="K",
+        help="track and score one DAVIS frame in K (a camera at 1/K of the frame rate, or "
+        "a service dropping frames; default 1)",
     )
     parser.add_argument(
         "--nodes",

@@ -196,17 +196,27 @@ def save_sheet(clip: Clip, result: ClipResult, out: Path) -> str:
 
 
 def write_sheets(
-    sets: Mapping[str, Sequence[ClipResult]], davis: int, synthetic: int, out: Path
+    sets: Mapping[str, Sequence[ClipResult]],
+    davis: int,
+    synthetic: int,
+    out: Path,
+    stride: int = 1,
 ) -> list[str]:
     """Sheets of the ``davis`` DAVIS clips (all sets together) and the ``synthetic`` synthetic
     conditions where efdm scores lowest (the first ones when efdm did not run), worst first;
-    the clips are loaded again (the results keep the contours, not the frames)."""
+    the clips are loaded again (the results keep the contours, not the frames), the DAVIS
+    ones with one frame in ``stride`` as they were tracked."""
     davis_clips = [c for name, clips in sets.items() if is_davis(name) for c in clips]
     chosen = [
         *worst_first(davis_clips)[:davis],
         *worst_first(sets.get("synthetic", []))[:synthetic],
     ]
-    return [
-        save_sheet(resized(ClipSpec(c.source, c.name, c.frames).load(), c.shape), c, out)
-        for c in chosen
-    ]
+    return [save_sheet(resized(_reloaded(c, stride).load(), c.shape), c, out) for c in chosen]
+
+
+def _reloaded(clip: ClipResult, stride: int) -> ClipSpec:
+    """The clip a result was tracked on: its ``frames`` one in ``stride`` of the first
+    ``frames * stride`` (DAVIS; a synthetic clip is drawn as it was)."""
+    if not is_davis(clip.source) or stride == 1:
+        return ClipSpec(clip.source, clip.name, clip.frames)
+    return ClipSpec(clip.source, clip.name, clip.frames * stride, stride=stride)

@@ -67,6 +67,9 @@ class ClipSpec:
     noise : float
         DAVIS: deviation (levels) of the Gaussian noise added to every channel of its
         frames, as a noisy sensor's (:func:`noisy_frame`; 0: none).
+    stride : int
+        DAVIS: every how many of its frames are kept, masks alike (1: all): the clip a
+        camera at ``1/stride`` of the frame rate gives. ``frames`` counts before it.
     """
 
     set: str
@@ -76,6 +79,7 @@ class ClipSpec:
     grey: bool = False
     tint: bool = False
     noise: float = 0.0
+    stride: int = 1
 
     def load(self) -> Clip:
         """The clip's frames and masks (its ``source`` is the set)."""
@@ -83,6 +87,8 @@ class ClipSpec:
             clip = load_synthetic(self.name, self.frames or 0)
             return Clip(clip.name, self.set, clip.frames, clip.masks, clip.visible)
         clip = load_davis(self.name, self.frames, DAVIS_ROOTS[self.set], source=self.set)
+        if self.stride > 1:
+            clip = strided(clip, self.stride)
         if self.resize != 1.0:
             h, w = clip.frames[0].shape[:2]
             clip = resized(clip, (round(h * self.resize), round(w * self.resize)))
@@ -97,6 +103,13 @@ class ClipSpec:
             frames = tuple(noisy_frame(f, self.noise, (seed, k)) for k, f in enumerate(clip.frames))
             clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
         return clip
+
+
+def strided(clip: Clip, stride: int) -> Clip:
+    """``clip`` with every ``stride``-th frame and mask kept, the first among them."""
+    return Clip(
+        clip.name, clip.source, clip.frames[::stride], clip.masks[::stride], clip.visible[::stride]
+    )
 
 
 def grey_frame(frame: Frame) -> Frame:
@@ -161,6 +174,8 @@ def davis_view(config: Config) -> list[str]:
         notes.append("DAVIS frames in a sepia tone through YUV 4:2:0")
     if config.davis_noise > 0:
         notes.append(f"Gaussian noise of {config.davis_noise:g} levels on every DAVIS channel")
+    if config.davis_stride > 1:
+        notes.append(f"one DAVIS frame in {config.davis_stride} tracked and scored")
     return notes
 
 
@@ -204,8 +219,9 @@ def choose(
     grey = not synthetic and config.davis_grey
     tint = not synthetic and config.davis_tint
     noise = 0.0 if synthetic else config.davis_noise
+    stride = 1 if synthetic else config.davis_stride
     chosen = select(names, wanted, count)
-    specs = [ClipSpec(set_name, name, frames, resize, grey, tint, noise) for name in chosen]
+    specs = [ClipSpec(set_name, name, frames, resize, grey, tint, noise, stride) for name in chosen]
     return specs, None
 
 

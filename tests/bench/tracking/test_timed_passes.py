@@ -217,3 +217,40 @@ def test_a_noisy_clip_has_the_same_noise_on_every_load_and_the_same_masks() -> N
     assert abs(np.corrcoef(first.ravel(), second.ravel())[0, 1]) < 0.1
     for a, b in zip(noisy.masks, colour.masks, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_a_strided_clip_keeps_one_frame_and_mask_in_k_from_the_first() -> None:
+    from bench.tracking.sets import ClipSpec
+
+    names = davis_names()
+    if not names:
+        pytest.skip("no DAVIS validation sequences here")
+    every = ClipSpec("davis-val", names[0], 7).load()
+    strided = ClipSpec("davis-val", names[0], 7, stride=3).load()
+    assert len(strided.frames) == len(strided.masks) == len(strided.visible) == 3
+    for k, index in enumerate((0, 3, 6)):
+        np.testing.assert_array_equal(strided.frames[k], every.frames[index])
+        np.testing.assert_array_equal(strided.masks[k], every.masks[index])
+
+
+@pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
+def test_a_strided_run_says_so_and_scores_the_strided_clip(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    name = davis_names()[0]
+    args = ["--quick", "--sets", "davis-val", "--trackers", "static", "--stride", "2"]
+    assert BENCHMARK.main([*args, "--sequences", name, "--out", str(tmp_path)]) == 0
+    assert "one DAVIS frame in 2 tracked and scored" in (tmp_path / "tracking.md").read_text()
+    (clip,) = json.loads((tmp_path / "tracking.json").read_text())["sets"]["davis-val"]
+    assert clip["frames"] == 8  # --quick's first 15 frames, one in two
+    assert (tmp_path / f"tracking_sheet_davis_{name}.jpg").exists()
+
+
+@pytest.mark.parametrize("value", ["0", "9", "1.5", "x"])
+def test_a_stride_out_of_range_is_refused(tmp_path: Path, value: str) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    with pytest.raises(SystemExit) as exit_info:
+        BENCHMARK.main(["--quick", "--stride", value, "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert not (tmp_path / "tracking.json").exists()
