@@ -76,8 +76,8 @@ MIN_RESIZE, MAX_RESIZE = 0.25, 4.0
 MAX_NOISE = 64.0
 """Largest ``--noise`` deviation: a quarter of the range, far beyond any camera's."""
 MAX_STRIDE = 8
-"""Largest ``--stride``: 3 frames a second from DAVIS's 24, the shortest sequence still
-scored on 7 frames."""
+"""Largest ``--stride``: 3 frames a second from DAVIS's 24; the shortest sequence
+(dog-agility, 25 frames) then keeps 4, two of them scored."""
 TIMED_ORDER = ("davis-val", "davis-train", "synthetic")
 """The set whose timings are the speed figures: the first of these that runs."""
 
