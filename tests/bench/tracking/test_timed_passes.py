@@ -219,14 +219,13 @@ def test_a_noisy_clip_has_the_same_noise_on_every_load_and_the_same_masks() -> N
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
 def test_a_strided_clip_keeps_one_frame_and_mask_in_k_from_the_first() -> None:
     from bench.tracking.sets import ClipSpec
 
-    names = davis_names()
-    if not names:
-        pytest.skip("no DAVIS validation sequences here")
-    every = ClipSpec("davis-val", names[0], 7).load()
-    strided = ClipSpec("davis-val", names[0], 7, stride=3).load()
+    name = davis_names()[0]
+    every = ClipSpec("davis-val", name, 7).load()
+    strided = ClipSpec("davis-val", name, 7, stride=3).load()
     assert len(strided.frames) == len(strided.masks) == len(strided.visible) == 3
     for k, index in enumerate((0, 3, 6)):
         np.testing.assert_array_equal(strided.frames[k], every.frames[index])
