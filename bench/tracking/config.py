@@ -57,6 +57,9 @@ class Config(BaseConfig):
     davis_stride : int
         Every how many frames of a DAVIS sequence are tracked and scored (1: all; 2: a
         camera at half the frame rate, or a service dropping every other frame).
+    davis_codec : str
+        A lossy video codec the DAVIS frames go through before tracking (a key of
+        :data:`bench.tracking.sets.CODECS`; empty: none).
     """
 
     train_count: int | None
@@ -74,6 +77,7 @@ class Config(BaseConfig):
     davis_tint: bool = False
     davis_noise: float = 0.0
     davis_stride: int = 1
+    davis_codec: str = ""
 
 
 FULL = Config("full", None, None, None, None, 40, None, 15, synthetic_seeds=3)

@@ -33,7 +33,9 @@ a grey camera gives them), ``--tint`` (in a sepia tone through YUV 4:2:0, as a m
 camera with a warm cast gives them), ``--noise SIGMA`` (Gaussian noise of SIGMA grey
 levels added to every channel of the DAVIS frames, as a noisy sensor gives them),
 ``--stride K`` (one DAVIS frame in K tracked and scored, the masks alike: a camera at 1/K
-of the frame rate, or a service that drops frames it cannot keep up with).
+of the frame rate, or a service that drops frames it cannot keep up with), ``--codec
+mp4v|vp8`` (the DAVIS frames written as a video by OpenCV's encoder and read back, as a
+user's compressed video reaches the tracker).
 
 Cross-validation (:mod:`bench.tracking.cv`): ``--cv "search_radius=10,12,16"
 [--cv "stiffness=20,40"] [--folds 5]`` tracks efdm with every point of the
@@ -65,7 +67,7 @@ from bench.tracking.plots import plot_scores, write_sheets
 from bench.tracking.pool import Job, track_all
 from bench.tracking.report import Results
 from bench.tracking.run import ClipResult, pooled_median_ms, same_tracks
-from bench.tracking.sets import ClipSpec, choose, is_partial, limits
+from bench.tracking.sets import CODECS, ClipSpec, choose, is_partial, limits
 from bench.tracking.trackers import TRACKERS, Factory, factory
 
 MIN_LENGTH = 3
@@ -193,6 +195,8 @@ def run(config: Config, args: argparse.Namespace) -> Results | CvResults:
         config = dataclasses.replace(config, davis_noise=args.noise)
     if args.stride != 1:
         config = dataclasses.replace(config, davis_stride=args.stride)
+    if args.codec:
+        config = dataclasses.replace(config, davis_codec=args.codec)
     return run_tuning(config, args) if args.cv else run_plain(config, args)
 
 
@@ -282,7 +286,7 @@ def noise_level(text: str) -> float:
 def arguments(parser: argparse.ArgumentParser) -> None:
     """``--sets``, ``--sequences``, ``--trackers``, ``--workers``, ``--cv``, ``--folds``,
     ``--seeds``, ``--length``, ``--resize``, ``--grey``, ``--tint``, ``--noise``,
-    ``--stride`` and ``--nodes``."""
+    ``--stride``, ``--codec`` and ``--nodes``."""
     parser.add_argument("--sets", type=choices(SETS), default=list(SETS), help=",".join(SETS))
     parser.add_argument(
         "--sequences", type=names, default=None, help="DAVIS sequences / synthetic conditions"
@@ -345,6 +349,13 @@ def arguments(parser: argparse.ArgumentParser) -> None:
         metavar="K",
         help="track and score one DAVIS frame in K (a camera at 1/K of the frame rate, or "
         "a service dropping frames; default 1)",
+    )
+    parser.add_argument(
+        "--codec",
+        choices=sorted(CODECS),
+        default="",
+        help="write the DAVIS frames as a video with this codec (OpenCV's encoder, default "
+        "quality) and track the frames read back (default: none)",
     )
     parser.add_argument(
         "--nodes",

@@ -13,6 +13,7 @@ A set whose data is absent is skipped with a note.
 
 from __future__ import annotations
 
+import tempfile
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -70,6 +71,8 @@ class ClipSpec:
     stride : int
         DAVIS: every how many of its frames are kept, masks alike (1: all): the clip a
         camera at ``1/stride`` of the frame rate gives. ``frames`` counts before it.
+    codec : str
+        DAVIS: a lossy video codec its frames go through last (:func:`coded`; empty: none).
     """
 
     set: str
@@ -80,6 +83,7 @@ class ClipSpec:
     tint: bool = False
     noise: float = 0.0
     stride: int = 1
+    codec: str = ""
 
     def load(self) -> Clip:
         """The clip's frames and masks (its ``source`` is the set)."""
@@ -102,6 +106,10 @@ class ClipSpec:
             seed = zlib.crc32(self.name.encode())
             frames = tuple(noisy_frame(f, self.noise, (seed, k)) for k, f in enumerate(clip.frames))
             clip = Clip(clip.name, clip.source, frames, clip.masks, clip.visible)
+        if self.codec:
+            clip = Clip(
+                clip.name, clip.source, coded(clip.frames, self.codec), clip.masks, clip.visible
+            )
         return clip
 
 
@@ -110,6 +118,52 @@ def strided(clip: Clip, stride: int) -> Clip:
     return Clip(
         clip.name, clip.source, clip.frames[::stride], clip.masks[::stride], clip.visible[::stride]
     )
+
+
+CODECS: dict[str, tuple[str, str]] = {"mp4v": ("mp4v", ".mp4"), "vp8": ("VP80", ".mkv")}
+"""``--codec``'s choices: OpenCV's FOURCC and the container it writes. The encoders of
+``opencv-python-headless``'s FFmpeg (no H.264 among them): MPEG-4 part 2 and VP8, each at
+OpenCV's default quality (35-39 dB PSNR on DAVIS)."""
+CODEC_FPS = 24
+"""The frame rate the clip is written at: DAVIS's (rate control spends its bits by it)."""
+
+
+def coded(frames: Sequence[Frame], codec: str) -> tuple[Frame, ...]:
+    """``frames`` (BGR or grey) written as a video with ``codec`` (a key of :data:`CODECS`)
+    by :class:`cv2.VideoWriter` and read back: a user's compressed video. The same frames on
+    every run (the encoders are deterministic).
+
+    Raises
+    ------
+    ValueError
+        If ``codec`` is not one of :data:`CODECS`.
+    RuntimeError
+        If this OpenCV cannot write or read back that video.
+    """
+    if codec not in CODECS:
+        raise ValueError(f"codec must be one of {', '.join(CODECS)}; got {codec!r}")
+    fourcc, suffix = CODECS[codec]
+    h, w = frames[0].shape[:2]
+    grey = frames[0].ndim == 2
+    out: list[Frame] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / f"clip{suffix}")
+        writer = cv2.VideoWriter(path, cv2.VideoWriter.fourcc(*fourcc), CODEC_FPS, (w, h))
+        if not writer.isOpened():
+            raise RuntimeError(f"this OpenCV cannot write {codec} video ({fourcc}, {suffix})")
+        for frame in frames:
+            writer.write(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR) if grey else frame)
+        writer.release()
+        reader = cv2.VideoCapture(path)
+        while True:
+            ok, image = reader.read()
+            if not ok:
+                break
+            out.append(np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if grey else image))
+        reader.release()
+    if len(out) != len(frames) or out[0].shape[:2] != (h, w):
+        raise RuntimeError(f"{codec}: {len(frames)} frames written, {len(out)} read back")
+    return tuple(out)
 
 
 def grey_frame(frame: Frame) -> Frame:
@@ -176,6 +230,8 @@ def davis_view(config: Config) -> list[str]:
         notes.append(f"Gaussian noise of {config.davis_noise:g} levels on every DAVIS channel")
     if config.davis_stride > 1:
         notes.append(f"one DAVIS frame in {config.davis_stride} tracked and scored")
+    if config.davis_codec:
+        notes.append(f"DAVIS frames through {config.davis_codec} video (OpenCV's encoder)")
     return notes
 
 
@@ -220,8 +276,12 @@ def choose(
     tint = not synthetic and config.davis_tint
     noise = 0.0 if synthetic else config.davis_noise
     stride = 1 if synthetic else config.davis_stride
+    codec = "" if synthetic else config.davis_codec
     chosen = select(names, wanted, count)
-    specs = [ClipSpec(set_name, name, frames, resize, grey, tint, noise, stride) for name in chosen]
+    specs = [
+        ClipSpec(set_name, name, frames, resize, grey, tint, noise, stride, codec)
+        for name in chosen
+    ]
     return specs, None
 
 

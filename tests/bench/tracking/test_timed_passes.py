@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -251,5 +252,59 @@ def test_a_stride_out_of_range_is_refused(tmp_path: Path, value: str) -> None:
 
     with pytest.raises(SystemExit) as exit_info:
         BENCHMARK.main(["--quick", "--stride", value, "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert not (tmp_path / "tracking.json").exists()
+
+
+@pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
+@pytest.mark.parametrize("codec", ["mp4v", "vp8"])
+def test_a_coded_clip_is_close_the_same_on_every_load_and_keeps_its_masks(codec: str) -> None:
+    from bench.tracking.sets import ClipSpec
+
+    name = davis_names()[0]
+    plain = ClipSpec("davis-val", name, 3).load()
+    coded = ClipSpec("davis-val", name, 3, codec=codec).load()
+    again = ClipSpec("davis-val", name, 3, codec=codec).load()
+    assert len(coded.frames) == 3
+    for frame, original, same in zip(coded.frames, plain.frames, again.frames, strict=True):
+        assert frame.shape == original.shape
+        assert frame.dtype == np.uint8
+        np.testing.assert_array_equal(frame, same)  # deterministic encoders
+        assert not np.array_equal(frame, original)  # lossy
+        assert 30.0 < cv2.PSNR(frame, original) < 60.0
+    for a, b in zip(coded.masks, plain.masks, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_grey_clip_through_a_codec_stays_grey() -> None:
+    from bench.tracking.sets import coded
+
+    rng = np.random.default_rng(1)
+    frames = [
+        np.asarray(
+            cv2.GaussianBlur(rng.integers(0, 256, (48, 64), dtype=np.uint8), (5, 5), 1), np.uint8
+        )
+        for _ in range(3)
+    ]
+    out = coded(frames, "mp4v")
+    assert [f.shape for f in out] == [(48, 64)] * 3
+    with pytest.raises(ValueError, match="codec must be one of"):
+        coded(frames, "h264")
+
+
+@pytest.mark.skipif(not davis_names(), reason="no DAVIS validation sequences here")
+def test_a_coded_run_says_so(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    args = ["--quick", "--sets", "davis-val", "--trackers", "static", "--codec", "vp8"]
+    assert BENCHMARK.main([*args, "--sequences", davis_names()[0], "--out", str(tmp_path)]) == 0
+    assert "DAVIS frames through vp8 video" in (tmp_path / "tracking.md").read_text()
+
+
+def test_an_unknown_codec_is_refused(tmp_path: Path) -> None:
+    from bench.tracking.main import BENCHMARK
+
+    with pytest.raises(SystemExit) as exit_info:
+        BENCHMARK.main(["--quick", "--codec", "h264", "--out", str(tmp_path)])
     assert exit_info.value.code == 2
     assert not (tmp_path / "tracking.json").exists()
