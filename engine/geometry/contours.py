@@ -273,7 +273,7 @@ def contour_to_mask(nodes: Nodes, shape: tuple[int, ...]) -> NDArray[np.uint8]:
     return mask
 
 
-def mask_to_contour(mask: ArrayLike, count: int) -> Nodes:
+def mask_to_contour(mask: ArrayLike, count: int, *, offset: tuple[int, int] = (0, 0)) -> Nodes:
     """The largest outer contour of a binary mask, resampled to ``count`` nodes.
 
     Parameters
@@ -282,6 +282,12 @@ def mask_to_contour(mask: ArrayLike, count: int) -> Nodes:
         H x W, non-zero = object.
     count : int
         Number of nodes (>= 3).
+    offset : tuple of int, default (0, 0)
+        ``[x, y]`` pixels added to the outline's pixel positions before it is
+        resampled: the mask is a crop whose top-left pixel is at ``offset`` in a
+        larger image, and the contour is wanted in that image's pixels, exactly as
+        the uncropped mask would give it (the integer positions are moved, not the
+        resampled floats, whose rounding would then differ).
 
     Raises
     ------
@@ -292,9 +298,10 @@ def mask_to_contour(mask: ArrayLike, count: int) -> Nodes:
     if m.ndim != 2:
         raise ValueError(f"mask must be two-dimensional; got shape {m.shape}")
     count = _count(count, 3)
-    largest = max(_outer_contours(m), key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
-    if len(largest) < 3:
+    outline = max(_outer_contours(m), key=cv2.contourArea).reshape(-1, 2)
+    if len(outline) < 3:
         raise ValueError("mask's object is too small for a contour")
+    largest = (outline + np.asarray(offset, dtype=np.int32)).astype(np.float64)
     return resample(largest, count, closed=True)
 
 

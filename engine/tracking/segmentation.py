@@ -75,6 +75,12 @@ FINE_OUTSIDE = 1
 over five node counts, inside / outside 1 / 1, 1 / 2, 2 / 1, 2 / 2 and 3 / 3 gave J 0.7384,
 0.7402, 0.7420, 0.7426 and 0.7374 (``docs/tracking-log.md``): the layer outside costs a
 quarter of the cut's time for 0.0006."""
+FINE_MARGIN = 3
+"""Half-resolution pixels kept round the box of the piece that the full-resolution cut
+refines: its relabelled pixels and their links reach FINE_OUTSIDE + 1 full-resolution
+pixels beyond the piece, and three half-resolution pixels (six full) keep even the
+bilinear scaling's border out of their reach, so the cut of the crop is the cut of the
+whole region pixel for pixel, on a fraction of its pixels."""
 MIN_OVERLAP = 0.3
 """The kept piece must cover 30 % of the chain's silhouette: a cut that lost
 most of the object is not trusted over the chain."""
@@ -302,6 +308,14 @@ def _full_resolution(
     few erosions and dilations cost a fraction of a distance transform of a large
     region, and the layers differ from it only along diagonals, by under a pixel.
     """
+    # only the piece's box and its surroundings are read: every relabelled pixel, its
+    # links and their far ends lie within FINE_OUTSIDE + 1 of the piece
+    x, y, box_w, box_h = cv2.boundingRect(piece.astype(np.uint8))
+    x0, y0 = max(x - FINE_MARGIN, 0), max(y - FINE_MARGIN, 0)
+    x1 = min(x + box_w + FINE_MARGIN, piece.shape[1])
+    y1 = min(y + box_h + FINE_MARGIN, piece.shape[0])
+    piece, probability = piece[y0:y1, x0:x1], probability[y0:y1, x0:x1]
+    region = region[2 * y0 : 2 * y1, 2 * x0 : 2 * x1]
     h, w = piece.shape
     size = (2 * w, 2 * h)
     # linear, not nearest: the half-resolution staircase does not become the prior
@@ -323,5 +337,5 @@ def _full_resolution(
     table[0], table[FINE_OUTSIDE + FINE_INSIDE + 1] = -band - 0.5, band + 0.5
     distance = np.asarray(cv2.LUT(layers, table), np.float32)
     upscaled = np.asarray(cv2.resize(probability, size, interpolation=cv2.INTER_LINEAR), np.float32)
-    seg = _cut(distance, band, region[: 2 * h, : 2 * w], upscaled, 1)
-    return mask_to_contour(seg if seg.any() else inside, count)
+    seg = _cut(distance, band, region, upscaled, 1)
+    return mask_to_contour(seg if seg.any() else inside, count, offset=(2 * x0, 2 * y0))

@@ -330,6 +330,16 @@ def test_mask_to_contour_takes_the_largest_object() -> None:
     assert 29 * 39 * 0.98 <= abs(polygon_area(nodes)) <= 30 * 40 * 1.02
 
 
+@pytest.mark.parametrize("offset", [(0, 0), (7, 3), (120, 45)])
+def test_mask_to_contour_of_a_crop_is_the_whole_masks_bit_for_bit(offset: tuple[int, int]) -> None:
+    x, y = offset
+    whole = contour_to_mask(circle_nodes((x + 31.3, y + 22.7), 17.0, 360), (y + 60, x + 70))
+    crop = whole[y:, x:]
+    np.testing.assert_array_equal(
+        mask_to_contour(crop, 64, offset=offset), mask_to_contour(whole, 64)
+    )
+
+
 def test_mask_to_contour_rejects_empty_and_non_2d_masks() -> None:
     with pytest.raises(ValueError, match="no object"):
         mask_to_contour(np.zeros((20, 20), np.uint8), 16)

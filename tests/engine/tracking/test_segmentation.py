@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, contour_to_mask, mask_iou, resample
-from engine.tracking import BandCut, Maps, Tracker
+from engine.tracking import BandCut, Maps, Tracker, segmentation
 from engine.tracking._cut_kernels import PROBABILITY_FLOOR, SHAPE_CLIP
 from engine.tracking.appearance import quantise
 from engine.tracking.local_colour import LocalColour
@@ -226,6 +226,21 @@ def test_the_second_cut_moves_the_edge_by_at_most_its_band() -> None:
         assert np.all(mask >= shrunk)
         moved = np.count_nonzero(mask != (scaled > 0))
         assert moved > 0.75 * layers * 4 * 80  # it did move, as far as it may all round
+
+
+def test_the_second_cut_reads_only_the_pieces_surroundings(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Its crop to the piece's box and FINE_MARGIN round it gives the cut of the whole
+    region bit for bit (the region uncropped: a margin wider than the region)."""
+    rng = np.random.default_rng(5)
+    region = rng.integers(0, 256, (300, 340, 3), dtype=np.uint8)
+    probability = rng.uniform(0.4, 0.999, (150, 170)).astype(np.float32)  # mostly outward
+    piece = cv2.circle(np.zeros((150, 170), np.uint8), (80, 70), 40, 1, -1) > 0
+    piece[60:75, 115:150] = True  # an arm out to the right
+    cropped = _full_resolution(piece, region, probability, 128)
+    monkeypatch.setattr(segmentation, "FINE_MARGIN", 1_000)
+    np.testing.assert_array_equal(cropped, _full_resolution(piece, region, probability, 128))
 
 
 def test_the_cut_moves_the_boundary_by_at_most_the_band() -> None:
