@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import as_nodes, contour_to_mask, mask_iou
+from engine.geometry import as_nodes, bounding_box, contour_to_mask, mask_iou
 from engine.tracking.maps import Maps
 from engine.tracking.occlusion import BACKGROUND_BELOW
 
@@ -334,13 +334,17 @@ def evidence(
         p = 0.5 (nothing known) inside and outside when either side falls wholly outside
         the maps.
     """
-    h, w = maps.probability.shape
-    mask = contour_to_mask(nodes - np.asarray(maps.origin, dtype=np.float64), (h, w))
+    local = nodes - np.asarray(maps.origin, dtype=np.float64)
+    # only the contour's box and the ring round it are read: the same pixels, in the same
+    # order, as in the whole maps, and the whole-pixel shift leaves the filling exact (a
+    # contour wholly beyond the maps: a pixel of them, which it does not cover)
+    x0, y0, x1, y1 = bounding_box(maps.probability.shape, local, RING + 2)
+    mask = contour_to_mask(local - [x0, y0], (y1 - y0, x1 - x0))
     inner = cv2.erode(mask, np.ones((2 * INSET + 1, 2 * INSET + 1), np.uint8)) > 0
     outer = cv2.dilate(mask, np.ones((2 * RING + 1, 2 * RING + 1), np.uint8)) > 0
     ring = outer & (mask == 0)
     found_in, found_out = bool(inner.any()), bool(ring.any())
-    p = maps.seen  # an occluder counts: the object is not seen there
+    p = maps.seen[y0:y1, x0:x1]  # an occluder counts: the object is not seen there
     # a side not in the maps (a contour around all of them): nothing tells it from the other
     both = found_in and found_out
     inside = float(p[inner].mean()) if both else 0.5
@@ -353,7 +357,8 @@ def evidence(
     if maps.motion is None or not both:
         return Evidence(inside, outside, settled, shape=shape, recent_shape=seen)
     # the log of the counted pixels only, not of the whole map
-    odds_in, odds_out = cv2.log(maps.motion[inner]).ravel(), cv2.log(maps.motion[ring]).ravel()
+    motion = maps.motion[y0:y1, x0:x1]
+    odds_in, odds_out = cv2.log(motion[inner]).ravel(), cv2.log(motion[ring]).ravel()
     moved_in, moved_out = float(odds_in.mean()), float(odds_out.mean())
     return Evidence(inside, outside, settled, moved_in, moved_out, True, shape, recent_shape=seen)
 

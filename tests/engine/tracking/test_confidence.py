@@ -67,6 +67,25 @@ def test_evidence_reads_inside_and_around_the_contour() -> None:
     assert evidence(disc_maps((7, 4)), circle_nodes((60.0, 50.0), 20.0, 64), True) == on
 
 
+@pytest.mark.parametrize("centre", [(90.0, 70.0), (14.0, 70.0), (90.0, 131.0)])
+def test_evidence_reads_exactly_the_pixels_of_the_whole_maps(centre: tuple[float, float]) -> None:
+    """It reads only the contour's box and ring, but the very pixels (and sums) that the
+    whole maps' inset and ring hold, also where the ring passes the maps' edge."""
+    rng = np.random.default_rng(3)
+    prob = rng.uniform(0.0, 1.0, (140, 200)).astype(np.float32)
+    motion = rng.uniform(0.2, 5.0, (140, 200)).astype(np.float32)
+    maps = Maps((5, 3), prob, np.zeros_like(prob), motion=motion)
+    nodes = circle_nodes((centre[0] + 5, centre[1] + 3), 17.3, 48)
+    found = evidence(maps, nodes, settled=True)
+    mask = contour_to_mask(nodes - [5.0, 3.0], prob.shape)
+    inner = cv2.erode(mask, np.ones((7, 7), np.uint8)) > 0
+    ring = (cv2.dilate(mask, np.ones((21, 21), np.uint8)) > 0) & (mask == 0)
+    assert found.inside == float(prob[inner].mean())
+    assert found.outside == float(prob[ring].mean())
+    assert found.motion_inside == float(cv2.log(motion[inner]).mean())
+    assert found.motion_outside == float(cv2.log(motion[ring]).mean())
+
+
 def test_evidence_outside_the_maps_is_unknown() -> None:
     far = evidence(disc_maps(), circle_nodes((900.0, 900.0), 10.0, 32), settled=False)
     assert (far.inside, far.outside) == (0.5, 0.5)
