@@ -15,6 +15,7 @@ def warm_up() -> None:
     """
     from engine.geometry import _kernels as geometry
     from engine.tracking import _cut_kernels as cut
+    from engine.tracking import _histogram_kernels as histogram
     from engine.tracking import _image_kernels as image
     from engine.tracking import _lighting_kernel as light
     from engine.tracking import _occluder_kernels as occluder
@@ -46,6 +47,10 @@ def warm_up() -> None:
         labels = np.zeros((2, 2), np.int32)
         occluder.ring_histogram(picture, (0, 0), 1, flags, flags, flags, 3)
         occluder.label_histograms(picture, (0, 0), labels, 1, 1, 3)
+    bins = np.ones(8)
+    histogram.odds_table(bins, bins, 1e-3)
+    histogram.blended(bins, bins, 0.05)
+    histogram.shares(np.ones(8, np.int64))
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
     image.scale_odds(maps, maps)

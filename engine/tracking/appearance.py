@@ -8,7 +8,7 @@ p(object | colour) is looked up per pixel.  Coordinates are ``[x, y]``.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Self
 
 import cv2
@@ -106,6 +106,10 @@ class Histograms:
     object_hist: NDArray[np.float64]
     background_hist: NDArray[np.float64]
     colour_bits: int = COLOUR_BITS
+    _table: list[NDArray[np.float32]] = field(
+        default_factory=list, init=False, repr=False, compare=False
+    )
+    """The table of :meth:`table`, once made (the histograms never change)."""
 
     @classmethod
     def fit(
@@ -145,18 +149,23 @@ class Histograms:
         if obj.shape != self.object_hist.shape:
             return Histograms(obj, bg, self.colour_bits)
 
-        def blend(old: NDArray[np.float64], new: NDArray[np.float64]) -> NDArray[np.float64]:
-            return old if new.sum() == 0 else (1 - rate) * old + rate * new  # nothing learnt
+        from engine.tracking._histogram_kernels import blended
 
         return Histograms(
-            blend(self.object_hist, obj), blend(self.background_hist, bg), self.colour_bits
+            blended(self.object_hist, obj, rate),
+            blended(self.background_hist, bg, rate),
+            self.colour_bits,
         )
 
     def table(self) -> NDArray[np.float32]:
-        """p(object | bin), with a weak prior of 0.5 for rarely seen colours."""
-        o, b = self.object_hist + PRIOR / len(self.object_hist), self.background_hist
-        b = b + PRIOR / len(b)
-        return np.asarray(o / (o + b), dtype=np.float32)
+        """p(object | bin), with a weak prior of 0.5 for rarely seen colours (made once
+        per histograms: the frame's attempts and the update that follows share it, so
+        it is not to be written to)."""
+        from engine.tracking._histogram_kernels import odds_table
+
+        if not self._table:
+            self._table.append(odds_table(self.object_hist, self.background_hist, PRIOR))
+        return self._table[0]
 
     def probability(
         self, image: NDArray[np.uint8], table: NDArray[np.float32] | None = None
@@ -323,6 +332,7 @@ def _histograms(
     table: NDArray[np.float32] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Object and background histograms; with a ``table``, only agreeing pixels."""
+    from engine.tracking._histogram_kernels import shares
     from engine.tracking._image_kernels import taught_counts
 
     # the ring, two pixels of slack, and one more past the box's exclusive end
@@ -350,5 +360,4 @@ def _histograms(
         np.float32(TEACH_BACKGROUND_BELOW),
         n_bins,
     )
-    obj, bg = (c.astype(np.float64) for c in counts)
-    return obj / max(obj.sum(), 1.0), bg / max(bg.sum(), 1.0)
+    return shares(counts[0]), shares(counts[1])
