@@ -20,6 +20,7 @@ def warm_up() -> None:
     from engine.tracking import _lighting_kernel as light
     from engine.tracking import _occluder_kernels as occluder
     from engine.tracking._refine_kernel import refine_chain
+    from engine.tracking._shape_kernels import best_overlap
 
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     geometry.polyline_crosses(square, True)
@@ -51,6 +52,8 @@ def warm_up() -> None:
     histogram.odds_table(bins, bins, 1e-3)
     histogram.blended(bins, bins, 0.05)
     histogram.shares(np.ones(8, np.int64))
+    grid = np.ones((2, 2), np.bool_)
+    best_overlap(grid[None], grid)
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
     image.scale_odds(maps, maps)

@@ -120,10 +120,9 @@ class RecentShapes:
         kept = [s for s in self._shapes if s is not None]
         if shape is None or not kept:
             return 0.0
-        stack = np.stack(kept)
-        union = np.count_nonzero(stack | shape, axis=(1, 2))  # mask_iou, all kept at once
-        common = np.count_nonzero(stack & shape, axis=(1, 2))
-        return float(np.max(common / np.maximum(union, 1)))
+        from engine.tracking._shape_kernels import best_overlap
+
+        return float(best_overlap(np.stack(kept), np.ascontiguousarray(shape)))  # mask_iou each
 
     def to_state(self) -> list[str | None]:
         """JSON-able: per frame, the shape packed to bits (base64), or None."""

@@ -6,8 +6,11 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from engine.geometry import circle_nodes
+from engine.tracking._shape_kernels import best_overlap
 from engine.tracking.confidence import (
     Evidence,
     calibrated,
@@ -115,3 +118,15 @@ def test_the_recent_shapes_survive_the_state_bit_for_bit() -> None:
 def test_malformed_recent_shapes_are_refused(bad: object) -> None:
     with pytest.raises(ValueError, match="recent shape"):
         RecentShapes.from_state(bad)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, RECENT_FRAMES), st.integers(0, 2**32 - 1), st.floats(0.0, 1.0))
+def test_the_best_overlap_is_numpys_count(kept: int, seed: int, fill: float) -> None:
+    """The compiled count gives numpy's IoUs' maximum bit for bit, empty grids included."""
+    rng = np.random.default_rng(seed)
+    stack = rng.uniform(size=(kept, 24, 24)) < fill * rng.uniform(size=(kept, 1, 1))
+    shape = rng.uniform(size=(24, 24)) < fill
+    union = np.count_nonzero(stack | shape, axis=(1, 2))
+    common = np.count_nonzero(stack & shape, axis=(1, 2))
+    assert best_overlap(stack, shape) == float(np.max(common / np.maximum(union, 1)))
