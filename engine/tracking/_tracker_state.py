@@ -102,6 +102,7 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
         state["previous"] = pack_image(previous)
     if previous is not None and tracker._frame_shape is not None:
         state["frame_shape"] = list(tracker._frame_shape)  # the size of the frames given
+        state["grid_side"] = tracker._grid_side  # and of the grid they are tracked on
     return state
 
 
@@ -139,6 +140,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
         options.setdefault("colour_bits", LEGACY_COLOUR_BITS)  # and before 32 colour levels
         options.setdefault("turn_outline", False)  # and before the outline turned
         options.setdefault("working_side", 0)  # and before the working resolution
+        options.setdefault("object_side", 0)  # and before a large object's grid
         options.setdefault("grey_texture", False)  # and before grey frames' texture
         nodes = as_nodes(state["nodes"])
         # built on a stand-in of as many nodes: a tracked contour may have shrunk below what
@@ -180,7 +182,7 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
                 if isinstance(previous, Mapping)
                 else unpack_image(previous)
             )
-            _regrid(tracker, state.get("frame_shape"))
+            _regrid(tracker, state.get("frame_shape"), state.get("grid_side"))
     # AttributeError: a part that should be a dict is not; OverflowError: an infinite count
     except (
         KeyError,
@@ -213,9 +215,10 @@ def _restore_look(tracker: Tracker, look: object) -> None:
             raise ValueError("the look put aside must be of the other kind of frame")
 
 
-def _regrid(tracker: Tracker, frame_shape: object) -> None:
+def _regrid(tracker: Tracker, frame_shape: object, grid_side: object) -> None:
     """The restored tracker's frame size and working grid, checked against its previous
-    frame (states written before the working resolution: that frame's size)."""
+    frame (states written before the working resolution: that frame's size; before a
+    large object's grid: ``working_side``'s)."""
     previous = tracker._previous
     assert previous is not None
     if frame_shape is None:
@@ -228,11 +231,14 @@ def _regrid(tracker: Tracker, frame_shape: object) -> None:
         shape = (int(frame_shape[0]), int(frame_shape[1]))
     else:
         raise ValueError(f"frame_shape must be [height, width]; got {frame_shape!r}")
-    scale = working_scale(shape, tracker.options.working_side)
+    side = tracker.options.working_side if grid_side is None else grid_side
+    if isinstance(side, bool) or not isinstance(side, int) or side < 0:
+        raise ValueError(f"grid_side must be a whole number of pixels; got {grid_side!r}")
+    scale = working_scale(shape, side)
     grid = shape if scale is None else (scale.size[1], scale.size[0])
     if previous.shape[:2] != grid:
         raise ValueError(
             f"the previous frame is {previous.shape[1]} x {previous.shape[0]}; frames of "
             f"{shape[1]} x {shape[0]} are tracked at {grid[1]} x {grid[0]}"
         )
-    tracker._frame_shape, tracker._scale = shape, scale
+    tracker._frame_shape, tracker._scale, tracker._grid_side = shape, scale, side

@@ -31,6 +31,11 @@ MIN_WORKING_SIDE = 64
 little more than the tracker's Lucas-Kanade pyramid and search windows."""
 MAX_WORKING_SIDE = 16384
 """Largest working resolution: no camera's frame exceeds it."""
+OBJECT_SIDE = 160
+"""Default :attr:`TrackerOptions.object_side` (pixels)."""
+MIN_OBJECT_SIDE = 16
+"""Smallest ``object_side`` besides 0: an object this size is the smallest the tracker
+follows well (the generated ``small`` object, 20-40 px across)."""
 MAX_CUT_BAND = 64
 """Widest band of the joint segmentation: beyond this the cut is a whole-region
 segmentation, slower and no longer anchored to the tracked shape."""
@@ -258,6 +263,22 @@ class TrackerOptions:
         five folds of ``python -m bench.tracking --cv "working_side=0,480" --resize
         2.25``).  0 tracks every frame at its own resolution; otherwise at least 64.
         States written before it resume with 0.
+    object_side : int
+        A track whose first contour encloses more than this many pixels squared
+        (the square root of its area above it) is tracked on a grid smaller again by
+        the ratio, so that the object is this size on it
+        (:func:`engine.tracking.working.object_grid_side`); contours in and out stay in
+        the frame's pixels.  The overlap is relative to the object's size: a large
+        object's boundary placed to a coarser pixel costs it no more, and its frames
+        cost what a smaller object's do.  Default 160 (pixels; 0: never): on the thirty
+        training sequences over five node counts 0 / 140 / 160 / 180 / 200 gave J 0.749
+        / 0.743 / 0.749 / 0.749 / 0.750 (``python -m bench.tracking --cv
+        "object_side=0,140,160,180,200" --nodes 112,120,128,136,144``; 200 chosen in
+        every fold, by at most 0.002), and 160, the smallest size that keeps J, takes a
+        sixth off the validation five's median frame (four of their five objects start
+        at about 205).  Decided on the track's first frame (and on
+        :meth:`~engine.tracking.Tracker.reset`), kept while the object grows or
+        shrinks.  States written before it resume with 0.
 
     Raises
     ------
@@ -295,6 +316,7 @@ class TrackerOptions:
     turn_outline: bool = True
     grey_texture: bool = True
     working_side: int = WORKING_SIDE
+    object_side: int = OBJECT_SIDE
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> TrackerOptions:
@@ -335,6 +357,16 @@ class TrackerOptions:
             raise ValueError(
                 f"working_side must be 0 or an integer in [{MIN_WORKING_SIDE}, "
                 f"{MAX_WORKING_SIDE}]; got {side!r}"
+            )
+        size = self.object_side
+        if (
+            isinstance(size, bool)
+            or not isinstance(size, int)
+            or not (size == 0 or MIN_OBJECT_SIDE <= size <= MAX_WORKING_SIDE)
+        ):
+            raise ValueError(
+                f"object_side must be 0 or an integer in [{MIN_OBJECT_SIDE}, "
+                f"{MAX_WORKING_SIDE}]; got {size!r}"
             )
         band = self.cut_band
         if isinstance(band, bool) or not isinstance(band, int) or not 0 <= band <= MAX_CUT_BAND:

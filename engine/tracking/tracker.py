@@ -21,8 +21,10 @@ and the physics.  Per frame (``step``):
    chain's contour as the shape prior, a minimum cut) and gives the final
    contour; a confident frame teaches the appearance model.
 
-Frames larger than the option ``working_side`` (480 lines) are tracked downscaled to it
-(:mod:`engine.tracking.working`); contours in and out are in the frame's own pixels.  A
+Frames larger than the option ``working_side`` (480 lines) are tracked downscaled to it,
+and a large object (its first contour's area over ``object_side``², 160² px²) on a grid
+smaller by as much as it is larger (:mod:`engine.tracking.working`); contours in and out
+are in the frame's own pixels.  A
 grey frame is described to the colour models by its grey level and two texture channels
 (option ``grey_texture``, :mod:`engine.tracking.texture`); so is a tinted monochrome one
 (sepia, a camera's cast: :func:`~engine.tracking.texture.is_tinted`) on a track's first
@@ -83,7 +85,7 @@ from engine.tracking.texture import (
 )
 from engine.tracking.turn import measure_turn, turned
 from engine.tracking.validity import valid_contour
-from engine.tracking.working import WorkingScale, working_scale
+from engine.tracking.working import WorkingScale, object_grid_side, working_scale
 
 __all__ = ["TrackResult", "Tracker", "TrackerOptions"]
 
@@ -224,6 +226,7 @@ class Tracker:
         # comes, the contour is in the frame's pixels, afterwards on the grid
         self._frame_shape: tuple[int, int] | None = None
         self._scale: WorkingScale | None = None
+        self._grid_side = self.options.working_side  # the grid's shorter side (0: none)
         # the previous grey frame (None: the next frame starts the track)
         self._previous: NDArray[np.uint8] | None = None
         self.frame_index = -1
@@ -280,7 +283,9 @@ class Tracker:
         was)."""
         nodes = self._in_frame(self._nodes)
         self._frame_shape = shape
-        self._scale = working_scale(shape, self.options.working_side)
+        opts = self.options
+        self._grid_side = object_grid_side(shape, nodes, opts.working_side, opts.object_side)
+        self._scale = working_scale(shape, self._grid_side)
         self._nodes = nodes if self._scale is None else self._scale.to_working(nodes)
         self._previous = None
 

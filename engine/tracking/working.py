@@ -22,6 +22,7 @@ Pixel centres correspond as :func:`cv2.resize` maps them: frame ``p`` is working
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 
@@ -32,7 +33,15 @@ from numpy.typing import NDArray
 from engine.tracking._frames import as_frame, repeatable_opencv
 from engine.tracking.noise import Smoothing
 
-__all__ = ["WORKING_SIDE", "WorkingFrames", "WorkingScale", "downscale", "working_scale"]
+__all__ = [
+    "MIN_GRID_SIDE",
+    "WORKING_SIDE",
+    "WorkingFrames",
+    "WorkingScale",
+    "downscale",
+    "object_grid_side",
+    "working_scale",
+]
 
 Grid = tuple[NDArray[np.uint8], NDArray[np.uint8], Smoothing]
 """A frame on a working grid: its image (BGR or grey), its grey, and its smoothing."""
@@ -41,6 +50,11 @@ WORKING_SIDE = 480
 """Default shorter side (pixels) of the frames tracked: the DAVIS sequences' 480 lines,
 on which every pixel constant of the tracker was chosen.  Frames of 480 lines or fewer
 are tracked as they are (bit for bit as without the working resolution)."""
+MIN_GRID_SIDE = 64
+"""The fewest lines a large object's grid (:func:`object_grid_side`) is brought down to:
+the smallest ``working_side`` allowed.  It binds only for an object nearly as large as a
+frame of an extreme aspect ratio (the square root of an area is at most the geometric
+mean of the frame's sides)."""
 HALF_COVERED = 0.5
 """A working pixel counts as covered (:mod:`engine.tracking.covering`) when at least
 half of the frame pixels it averages are."""
@@ -130,6 +144,34 @@ class WorkingScale:
         """An H x W bool mask on the working grid: pixels at least half covered."""
         share = cv2.resize(mask.astype(np.float32), self.size, interpolation=cv2.INTER_AREA)
         return np.asarray(share >= HALF_COVERED, np.bool_)
+
+
+def object_grid_side(
+    shape: tuple[int, ...], nodes: NDArray[np.float64], working_side: int, object_side: int
+) -> int:
+    """The shorter side of the grid a track starting on ``nodes`` is tracked on (0: the
+    frames as they are), for frames of ``shape`` (``(height, width, ...)``).
+
+    ``working_side`` as :func:`working_scale` takes it; and when the square root of the
+    area the closed contour ``nodes`` (``[x, y]`` frame pixels) encloses exceeds
+    ``object_side`` (0: never), the grid is as much smaller again: an object twice that
+    size is tracked at half the resolution.  Its overlap is relative to its size, so a
+    large object's boundary placed to a coarser pixel costs it no more than a smaller
+    one's to a finer pixel, and every stage's pixels (the cue maps, the cut's band, the
+    motion's crops) cost as for an object of that size.  The grid keeps at least
+    :data:`MIN_GRID_SIDE` lines.
+    """
+    from engine.geometry import polygon_area
+
+    side = int(working_side)
+    if object_side <= 0 or len(nodes) < 3:
+        return side
+    size = math.sqrt(abs(polygon_area(nodes)))
+    if not size > object_side:
+        return side
+    shorter = min(int(shape[0]), int(shape[1]))
+    wanted = max(MIN_GRID_SIDE, round(shorter * object_side / size))
+    return wanted if side <= 0 else min(side, wanted)
 
 
 def working_scale(shape: tuple[int, ...], side: int) -> WorkingScale | None:
