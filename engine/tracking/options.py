@@ -36,6 +36,11 @@ OBJECT_SIDE = 160
 MIN_OBJECT_SIDE = 16
 """Smallest ``object_side`` besides 0: an object this size is the smallest the tracker
 follows well (the generated ``small`` object, 20-40 px across)."""
+_ZERO_OR_BOUNDS = {
+    "working_side": (MIN_WORKING_SIDE, MAX_WORKING_SIDE),
+    "object_side": (MIN_OBJECT_SIDE, MAX_WORKING_SIDE),
+}
+"""Sizes that are 0 (off) or within these bounds."""
 MAX_CUT_BAND = 64
 """Widest band of the joint segmentation: beyond this the cut is a whole-region
 segmentation, slower and no longer anchored to the tracked shape."""
@@ -348,26 +353,16 @@ class TrackerOptions:
             ok = isinstance(value, int | float) and not isinstance(value, bool)
             if not ok or not math.isfinite(value) or not 0 <= value <= limit:
                 raise ValueError(f"{name} must be a finite number in [0, {limit:g}]; got {value!r}")
-        side = self.working_side
-        if (
-            isinstance(side, bool)
-            or not isinstance(side, int)
-            or not (side == 0 or MIN_WORKING_SIDE <= side <= MAX_WORKING_SIDE)
-        ):
-            raise ValueError(
-                f"working_side must be 0 or an integer in [{MIN_WORKING_SIDE}, "
-                f"{MAX_WORKING_SIDE}]; got {side!r}"
-            )
-        size = self.object_side
-        if (
-            isinstance(size, bool)
-            or not isinstance(size, int)
-            or not (size == 0 or MIN_OBJECT_SIDE <= size <= MAX_WORKING_SIDE)
-        ):
-            raise ValueError(
-                f"object_side must be 0 or an integer in [{MIN_OBJECT_SIDE}, "
-                f"{MAX_WORKING_SIDE}]; got {size!r}"
-            )
+        for name, (low, high) in _ZERO_OR_BOUNDS.items():
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int)
+                or not (value == 0 or low <= value <= high)
+            ):
+                raise ValueError(
+                    f"{name} must be 0 or an integer in [{low}, {high}]; got {value!r}"
+                )
         band = self.cut_band
         if isinstance(band, bool) or not isinstance(band, int) or not 0 <= band <= MAX_CUT_BAND:
             raise ValueError(f"cut_band must be an integer in [0, {MAX_CUT_BAND}]; got {band!r}")

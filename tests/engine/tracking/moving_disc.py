@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -59,6 +60,18 @@ def step_or_reject(tracker: Tracker, frame: Any, count: int = N) -> TrackResult 
     return result
 
 
+def upscaled(frame: U8, factor: int = 2) -> U8:
+    """A frame drawn ``factor`` times as large (bilinear)."""
+    h, w = frame.shape[:2]
+    return np.asarray(cv2.resize(frame, (w * factor, h * factor), interpolation=cv2.INTER_LINEAR))
+
+
+def larger(nodes: F64, factor: float = 2) -> F64:
+    """``[x, y]`` points of a frame in pixels of the frame scaled by ``factor``."""
+    result: F64 = (nodes + 0.5) * factor - 0.5
+    return result
+
+
 def run(tracker: Tracker, frames: list[U8]) -> list[TrackResult]:
     return [tracker.step(frame) for frame in frames]
 
@@ -68,6 +81,15 @@ def assert_same(a: TrackResult, b: TrackResult) -> None:
     assert a.iterations == b.iterations
     assert a.converged == b.converged
     assert a.confidence == b.confidence
+
+
+def resumes_alike(tracker: Tracker, state: dict[str, Any], frames: list[U8]) -> Tracker:
+    """The tracker ``state`` restores, after checking that it tracks ``frames`` exactly as
+    ``tracker`` (the one the state was taken from) does."""
+    restored = Tracker.from_state(state)
+    for a, b in zip(run(restored, frames), run(tracker, frames), strict=True):
+        assert_same(a, b)
+    return restored
 
 
 def through_json(state: dict[str, Any]) -> dict[str, Any]:

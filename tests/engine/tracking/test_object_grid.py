@@ -5,19 +5,28 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import cv2
 import numpy as np
 import pytest
-from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes
 from engine.tracking import Tracker
 from engine.tracking.options import OBJECT_SIDE
 from engine.tracking.working import MIN_GRID_SIDE, object_grid_side
-from tests.engine.tracking.moving_disc import H, R, W, assert_same, initial, run, through_json
+from tests.engine.tracking.moving_disc import (
+    F64,
+    U8,
+    H,
+    R,
+    W,
+    assert_same,
+    initial,
+    larger,
+    resumes_alike,
+    run,
+    through_json,
+    upscaled,
+)
 
-U8 = NDArray[np.uint8]
-F64 = NDArray[np.float64]
 UP = 4
 """The moving disc's frames drawn four times as large: 800 x 480, the disc's square root of
 area about 142 px."""
@@ -28,17 +37,7 @@ SIDE = 71
 
 def grid() -> int:
     """The lines of the grid the large disc is tracked on with :data:`SIDE`."""
-    return object_grid_side((H * UP, W * UP), larger(initial()), 480, SIDE)
-
-
-def upscaled(frame: U8) -> U8:
-    h, w = frame.shape[:2]
-    return np.asarray(cv2.resize(frame, (w * UP, h * UP), interpolation=cv2.INTER_LINEAR))
-
-
-def larger(nodes: F64) -> F64:
-    result: F64 = (nodes + 0.5) * UP - 0.5
-    return result
+    return object_grid_side((H * UP, W * UP), larger(initial(), UP), 480, SIDE)
 
 
 def disc(size: float) -> F64:
@@ -84,15 +83,15 @@ def test_a_bad_object_side_is_refused(side: Any) -> None:
 def test_a_large_object_is_tracked_on_the_grid_a_working_side_of_that_size_gives(
     frames: list[U8],
 ) -> None:
-    big = [upscaled(f) for f in frames[:8]]
+    big = [upscaled(f, UP) for f in frames[:8]]
     assert SIZE > SIDE
-    tracker = Tracker(larger(initial()), object_side=SIDE)
+    tracker = Tracker(larger(initial(), UP), object_side=SIDE)
     by_size = run(tracker, big)
     previous = tracker.previous_frame
     assert previous is not None
     assert 235 <= grid() <= 245  # half the lines, give or take the polygon's area
     assert previous.shape[0] == grid()
-    same_grid = run(Tracker(larger(initial()), working_side=grid(), object_side=0), big)
+    same_grid = run(Tracker(larger(initial(), UP), working_side=grid(), object_side=0), big)
     for a, b in zip(by_size, same_grid, strict=True):
         assert_same(a, b)  # in the frame's pixels, bit for bit
 
@@ -104,20 +103,20 @@ def test_an_object_below_object_side_is_tracked_as_without_it(frames: list[U8]) 
 
 
 def test_a_reset_decides_the_grid_anew(frames: list[U8]) -> None:
-    big = [upscaled(f) for f in frames[:4]]
-    tracker = Tracker(larger(initial()), object_side=SIDE)
+    big = [upscaled(f, UP) for f in frames[:4]]
+    tracker = Tracker(larger(initial(), UP), object_side=SIDE)
     run(tracker, big[:2])
     assert tracker.previous_frame is not None
     assert tracker.previous_frame.shape[0] == grid()
-    tracker.reset(larger(initial()) * 0.5 + 100.0)  # a quarter of the area: under the size
+    tracker.reset(larger(initial(), UP) * 0.5 + 100.0)  # a quarter of the area: under the size
     run(tracker, big[2:])
     assert tracker.previous_frame is not None
     assert tracker.previous_frame.shape[0] == H * UP
 
 
 def test_a_state_on_an_objects_grid_resumes_exactly(frames: list[U8]) -> None:
-    big = [upscaled(f) for f in frames[:10]]
-    tracker = Tracker(larger(initial()), object_side=SIDE)
+    big = [upscaled(f, UP) for f in frames[:10]]
+    tracker = Tracker(larger(initial(), UP), object_side=SIDE)
     run(tracker, big[:5])
     state = through_json(tracker.to_state())
     assert state["grid_side"] == grid()
@@ -129,21 +128,18 @@ def test_a_state_on_an_objects_grid_resumes_exactly(frames: list[U8]) -> None:
 def test_a_state_from_before_the_objects_grid_resumes_on_the_working_grid(
     frames: list[U8],
 ) -> None:
-    big = [upscaled(f) for f in frames[:6]]
-    tracker = Tracker(larger(initial()), object_side=0)
+    big = [upscaled(f, UP) for f in frames[:6]]
+    tracker = Tracker(larger(initial(), UP), object_side=0)
     run(tracker, big[:3])
     state = through_json(tracker.to_state())
     del state["options"]["object_side"], state["grid_side"]
-    restored = Tracker.from_state(state)
-    assert restored.options.object_side == 0
-    for a, b in zip(run(restored, big[3:]), run(tracker, big[3:]), strict=True):
-        assert_same(a, b)
+    assert resumes_alike(tracker, state, big[3:]).options.object_side == 0
 
 
 @pytest.mark.parametrize("grid_side", [-1, 1.5, "240", True, 100])
 def test_a_state_with_a_bad_grid_side_is_refused(grid_side: Any, frames: list[U8]) -> None:
-    tracker = Tracker(larger(initial()), object_side=SIDE)
-    run(tracker, [upscaled(f) for f in frames[:2]])
+    tracker = Tracker(larger(initial(), UP), object_side=SIDE)
+    run(tracker, [upscaled(f, UP) for f in frames[:2]])
     state = through_json(tracker.to_state())
     state["grid_side"] = grid_side  # 100: not the grid the previous frame is on
     with pytest.raises(ValueError, match="malformed tracker state"):

@@ -21,7 +21,17 @@ from engine.tracking.working import (
     downscale,
     working_scale,
 )
-from tests.engine.tracking.moving_disc import H, W, assert_same, initial, run, through_json
+from tests.engine.tracking.moving_disc import (
+    H,
+    W,
+    assert_same,
+    initial,
+    larger,
+    resumes_alike,
+    run,
+    through_json,
+    upscaled,
+)
 
 U8 = NDArray[np.uint8]
 F64 = NDArray[np.float64]
@@ -30,17 +40,6 @@ GRID_H, GRID_W = 480, 640
 """The working grid of the generated crowd drawn up by :data:`UP`."""
 """The moving disc's frames drawn twice as large: tracked on a working grid of their
 original size (``working_side=H``), they are the original clip, give or take the resize."""
-
-
-def upscaled(frame: U8, factor: int = UP) -> U8:
-    h, w = frame.shape[:2]
-    return np.asarray(cv2.resize(frame, (w * factor, h * factor), interpolation=cv2.INTER_LINEAR))
-
-
-def larger(nodes: F64, factor: float = UP) -> F64:
-    """``[x, y]`` points of a frame in pixels of the frame scaled by ``factor``."""
-    result: F64 = (nodes + 0.5) * factor - 0.5
-    return result
 
 
 @pytest.mark.parametrize(
@@ -221,10 +220,7 @@ def test_a_state_from_before_the_working_resolution_resumes_at_full_resolution(
     run(tracker, big[:3])
     state = through_json(tracker.to_state())
     del state["options"]["working_side"], state["frame_shape"]
-    restored = Tracker.from_state(state)
-    assert restored.options.working_side == 0
-    for a, b in zip(run(restored, big[3:]), run(tracker, big[3:]), strict=True):
-        assert_same(a, b)
+    assert resumes_alike(tracker, state, big[3:]).options.working_side == 0
 
 
 @pytest.mark.parametrize(
