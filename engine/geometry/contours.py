@@ -292,12 +292,18 @@ def mask_to_contour(mask: ArrayLike, count: int, *, offset: tuple[int, int] = (0
     Raises
     ------
     ValueError
-        If the mask is empty or not two-dimensional.
+        If the mask is empty or not two-dimensional, or ``offset`` is not two integers.
     """
     m = np.asarray(mask)
     if m.ndim != 2:
         raise ValueError(f"mask must be two-dimensional; got shape {m.shape}")
     count = _count(count, 3)
+    if (
+        not isinstance(offset, tuple | list)
+        or len(offset) != 2
+        or not all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in offset)
+    ):
+        raise ValueError(f"offset must be two whole numbers of pixels [x, y]; got {offset!r}")
     outline = max(_outer_contours(m), key=cv2.contourArea).reshape(-1, 2)
     if len(outline) < 3:
         raise ValueError("mask's object is too small for a contour")

@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.geometry import polygon_area
 from engine.tracking._frames import as_frame, repeatable_opencv
 from engine.tracking.noise import Smoothing
 
@@ -161,8 +162,6 @@ def object_grid_side(
     motion's crops) cost as for an object of that size.  The grid keeps at least
     :data:`MIN_GRID_SIDE` lines.
     """
-    from engine.geometry import polygon_area
-
     side = int(working_side)
     if object_side <= 0 or len(nodes) < 3:
         return side

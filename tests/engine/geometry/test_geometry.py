@@ -340,6 +340,13 @@ def test_mask_to_contour_of_a_crop_is_the_whole_masks_bit_for_bit(offset: tuple[
     )
 
 
+@pytest.mark.parametrize("offset", [(1.5, 2), (1, 2, 3), (True, 0), "12", (1,)])
+def test_mask_to_contour_refuses_an_offset_that_is_not_two_integers(offset: Any) -> None:
+    mask = contour_to_mask(circle_nodes((30.0, 20.0), 8.0, 64), (40, 60))
+    with pytest.raises(ValueError, match="offset must be two whole numbers"):
+        mask_to_contour(mask, 16, offset=offset)
+
+
 def test_mask_to_contour_rejects_empty_and_non_2d_masks() -> None:
     with pytest.raises(ValueError, match="no object"):
         mask_to_contour(np.zeros((20, 20), np.uint8), 16)
