@@ -143,3 +143,30 @@ def test_a_state_from_before_the_motion_contrast_resumes_without_it() -> None:
         np.testing.assert_array_equal(got.nodes, want.nodes)
         assert got.confidence == want.confidence
         assert not np.array_equal(other.nodes, want.nodes)  # the cue is at work here
+
+
+def test_the_motion_contrast_reads_the_background_the_motion_model_measured(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """One background fit a frame: the motion model's, not a second one in the region."""
+    import engine.tracking.motion_contrast as contrast
+
+    frames, _ = camouflaged(6)
+    measured: list[object] = []
+
+    def spy(*args: object, **kwargs: object) -> NDArray[np.float32] | None:
+        measured.append(kwargs.get("background"))
+        return motion_ratio(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr("engine.tracking._attempt.motion_ratio", spy)
+    calls = []
+    original = contrast.background_motion
+    monkeypatch.setattr(
+        contrast, "background_motion", lambda *a, **k: calls.append(1) or original(*a, **k)
+    )
+    tracker = engine.Tracker(NODES)
+    for frame in frames:
+        tracker.step(frame)
+    assert len(measured) >= len(frames) - 1  # a search's second attempt reads it too
+    assert all(isinstance(b, np.ndarray) and b.shape == (2, 3) for b in measured)
+    assert not calls
