@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import cv2
 import numpy as np
@@ -150,6 +151,7 @@ def test_the_motion_contrast_reads_the_background_the_motion_model_measured(
 ) -> None:
     """One background fit a frame: the motion model's, not a second one in the region."""
     import engine.tracking.motion_contrast as contrast
+    from engine.tracking.background import background_motion
 
     frames, _ = camouflaged(6)
     measured: list[object] = []
@@ -159,11 +161,13 @@ def test_the_motion_contrast_reads_the_background_the_motion_model_measured(
         return motion_ratio(*args, **kwargs)  # type: ignore[arg-type]
 
     monkeypatch.setattr("engine.tracking._attempt.motion_ratio", spy)
-    calls = []
-    original = contrast.background_motion
-    monkeypatch.setattr(
-        contrast, "background_motion", lambda *a, **k: calls.append(1) or original(*a, **k)
-    )
+    calls: list[int] = []
+
+    def counted(*args: Any, **kwargs: Any) -> NDArray[np.float64] | None:
+        calls.append(1)
+        return background_motion(*args, **kwargs)
+
+    monkeypatch.setattr(contrast, "background_motion", counted)
     tracker = engine.Tracker(NODES)
     for frame in frames:
         tracker.step(frame)
