@@ -19,7 +19,8 @@ from numpy.typing import NDArray
 from engine.tracking._state_codec import pack_image, pack_levels, unpack_image, unpack_levels
 from engine.tracking.maps import Maps, cue_maps, roi_box
 from engine.tracking.occlusion import BACKGROUND_BELOW, OBJECT_ABOVE, LocatedProbability, unoccluded
-from engine.tracking.stages import AppearanceModel, Frame, Grey, Prediction, check_kind
+from engine.tracking.regrid import rescaled_map
+from engine.tracking.stages import AppearanceModel, Frame, Grey, Move, Prediction, check_kind
 
 __all__ = ["RegionEdgeCues"]
 
@@ -88,6 +89,12 @@ class RegionEdgeCues:
             )
         self._memory = remembered.origin, _as_bytes(remembered.probability)
         return maps
+
+    def rescale(self, move: Move, factor: float) -> None:
+        """The remembered p(object) on another grid (:func:`engine.tracking.regrid.follow_size`):
+        ``move`` maps old-grid ``[x, y]`` points onto it, ``factor`` its pixels per old one."""
+        if self._memory is not None:
+            self._memory = rescaled_map(*self._memory, move)
 
     def object_weight(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """p(object) in the last frame at ``[x, y]`` points (1 where unknown)."""

@@ -35,7 +35,7 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import cv2
@@ -169,6 +169,13 @@ class Lighting:
         table = np.where((levels > BRIGHT) & (factor < 1), top, table)
         lut = np.clip(np.round(table), 0, 255).astype(np.uint8)
         return np.asarray(cv2.LUT(image, lut.reshape(256, 1, -1)), dtype=np.uint8)
+
+    def rescale(self, move: Callable[[NDArray[np.float64]], NDArray[np.float64]]) -> None:
+        """The object's interior points on another grid (``move`` maps old-grid ``[x, y]``
+        points onto it; :func:`engine.tracking.regrid.follow_size`).  The frame's sample,
+        of the old grid's size, measures no change on the next frame and is then renewed."""
+        if self._points is not None:
+            self._points = np.rint(move(self._points.astype(np.float64))).astype(np.int64)
 
     def learn(self, image: NDArray[np.uint8], nodes: NDArray[np.float64]) -> None:
         """Remember the colours of the object's interior (``nodes``: its contour on ``image``,

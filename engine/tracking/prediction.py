@@ -35,7 +35,7 @@ from engine.tracking.background import MEASURE
 from engine.tracking.flow import DEPTH, node_flow, read_flow
 from engine.tracking.motion import Motion, estimate_motion
 from engine.tracking.shared import SharedMotion
-from engine.tracking.stages import Grey, ObjectWeight, Prediction, check_kind
+from engine.tracking.stages import Grey, Move, ObjectWeight, Prediction, check_kind
 from engine.tracking.validity import valid_contour
 
 __all__ = ["FLOW_REACH", "REDETECT_EVERY", "FlowMotion"]
@@ -85,6 +85,12 @@ class FlowMotion:
     def reset(self) -> None:
         """Find corners anew on the next frame."""
         self._features = None
+
+    def rescale(self, move: Move, factor: float) -> None:
+        """The corners being tracked on another grid (:func:`engine.tracking.regrid.follow_size`):
+        ``move`` maps old-grid ``[x, y]`` points onto it (``factor``: its pixels per old one)."""
+        if self._features is not None:
+            self._features = move(self._features.astype(np.float64)).astype(np.float32)
 
     def predict(
         self,

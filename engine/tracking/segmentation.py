@@ -27,6 +27,7 @@ kept, since one contour cannot follow both.  Coordinates are ``[x, y]`` pixels.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from typing import Any, Self
 
@@ -36,10 +37,10 @@ from numpy.typing import NDArray
 
 from engine.geometry import contour_to_mask, mask_to_contour, perimeter
 from engine.tracking.beyond_band import bridge, carve, regrow
-from engine.tracking.local_colour import LocalColour
+from engine.tracking.local_colour import MAX_HALF, MIN_HALF, LocalColour
 from engine.tracking.maps import Maps
 from engine.tracking.motion_contrast import with_motion
-from engine.tracking.stages import Frame, check_kind
+from engine.tracking.stages import Frame, Move, check_kind
 
 __all__ = ["BandCut"]
 
@@ -123,6 +124,14 @@ class BandCut:
     def learn(self, image: Frame, nodes: NDArray[np.float64]) -> None:
         """Relearn the local colour models from this frame's final contour."""
         self.start(image, nodes)
+
+    def rescale(self, move: Move, factor: float) -> None:
+        """The local colour models' windows on another grid
+        (:func:`engine.tracking.regrid.follow_size`): ``factor`` as large in its pixels (their
+        counts are colours, not places; ``move`` is not needed)."""
+        if self._windows is not None:
+            half = min(MAX_HALF, max(MIN_HALF, round(self._windows.half * factor)))
+            self._windows = dataclasses.replace(self._windows, half=half)
 
     def segment(
         self,

@@ -49,6 +49,7 @@ __all__ = [
     "Frame",
     "Grey",
     "MotionModel",
+    "Move",
     "ObjectWeight",
     "Prediction",
     "Segmentation",
@@ -63,6 +64,12 @@ Grey = NDArray[np.uint8]
 
 ObjectWeight = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 """p(object) in the previous frame at (K, 2) ``[x, y]`` points, in [0, 1]."""
+
+Move = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+"""Maps (K, 2) ``[x, y]`` points of a track's old grid onto its new one: a stage's
+optional ``rescale(move, factor)`` (``factor``: new pixels per old one) keeps what it
+remembers of the last frame when the track changes grid
+(:func:`engine.tracking.regrid.follow_size`)."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -65,6 +65,7 @@ from engine.tracking.options import TrackerOptions
 from engine.tracking.prediction import FlowMotion
 from engine.tracking.reacquisition import jumped, search_reach, search_shape
 from engine.tracking.recent_shapes import remembered
+from engine.tracking.regrid import follow_size
 from engine.tracking.result import TrackResult
 from engine.tracking.segmentation import BandCut
 from engine.tracking.shape_memory import follow
@@ -384,6 +385,8 @@ class Tracker:
             covered = None  # nothing in front: exactly as a tracker alone
         if grey.shape != self._frame_shape:
             self._regrid((grey.shape[0], grey.shape[1]))
+        else:  # an object that grew or shrank much: tracked on a grid of its new size
+            follow_size(self)
         with _repeatable_opencv():
             scale, smoothing = self._scale, crowd.smoothing
             if scale is not None:  # on the working grid (the shared measures too, if theirs)
