@@ -282,8 +282,10 @@ class TrackerOptions:
         every fold, by at most 0.002), and 160, the smallest size that keeps J, takes a
         sixth off the validation five's median frame (four of their five objects start
         at about 205).  Decided on the track's first frame (and on
-        :meth:`~engine.tracking.Tracker.reset`), kept while the object grows or
-        shrinks.  States written before it resume with 0.
+        :meth:`~engine.tracking.Tracker.reset`), and changed while the track is
+        confident once the object's size has changed by a quarter, either way
+        (:func:`engine.tracking.regrid.follow_size`).  States written before it
+        resume with 0.
 
     Raises
     ------

@@ -24,7 +24,11 @@ file that has these methods; pass an instance to the tracker::
 A stage may also have ``to_compact_state()``: a smaller, possibly lossy state
 that its ``from_state`` also reads, used by ``Tracker.to_state(compact=True)``
 (the default cues keep p(object) as three levels); without it the exact state
-is used there too.
+is used there too.  The motion, cue and segmentation stages may have
+``rescale(move, factor)`` (:data:`Move`): what they keep of the last frame put
+on another grid, when a track follows its object's size
+(:func:`engine.tracking.regrid.follow_size`); a tracker with one without it stays on
+its first grid.
 
 The defaults are :class:`engine.tracking.FlowMotion`,
 :class:`engine.tracking.ColourHistogram`,
