@@ -110,12 +110,8 @@ def track_around(
     if options.motion_contrast and previous is not None:
         shape = maps.probability.shape
         args = (maps.origin, shape, tracker._nodes, prediction.matrix)
-        # the background's motion: the crowd's, measured over the whole frame, or the
-        # motion model's around the contour, or (neither) measured in the region
-        shared, measured = crowd.shared, prediction.background
-        background: Background = MEASURE if measured is None else measured
-        if shared is not None:
-            background = shared.background
+        shared = crowd.shared
+        background: Background = MEASURE if shared is None else shared.background
         ratio = motion_ratio(previous, grey, *args, background=background)
         if ratio is not None:
             probability = with_motion(maps.probability, ratio)

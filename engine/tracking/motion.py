@@ -106,17 +106,12 @@ class Motion:
     tracked : numpy.ndarray
         (K, 2) float32 ``[x, y]``: where the corners that agreed with the fit
         are in the current frame, to be tracked on from there.
-    background : numpy.ndarray or None
-        2 x 3 float64 similarity of the background around the contour, mapping
-        ``[x, y, 1]`` of the previous frame to the current one, when it was
-        measured here (``figure_ground``) and could be; else None.
     """
 
     matrix: NDArray[np.float64]
     inlier_ratio: float
     points: int
     tracked: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 2), np.float32))
-    background: NDArray[np.float64] | None = None
 
     def apply(self, nodes: NDArray[np.float64]) -> NDArray[np.float64]:
         """Transform ``[x, y]`` nodes."""
@@ -364,14 +359,10 @@ def estimate_motion(
     dst = np.where(ok_fine[:, None], dst, guess)
     origin = np.asarray(frames.origin, dtype=np.float64)
     corner_good = is_corner[good]
-    measured = None  # the background's similarity measured here, in frame coordinates
     if not figure_ground or background is None:
         background = None
     elif isinstance(background, str):
         background = _background(frames, half_nodes)
-        if background is not None:
-            measured = background.copy()
-            measured[:, 2] += origin - measured[:, :2] @ origin
     else:  # a frame similarity, in crop coordinates
         background = in_region(background, frames.origin)
     if background is not None:
@@ -396,7 +387,7 @@ def estimate_motion(
         fitted[:, :2] /= np.hypot(*fitted[:, 0])
     # back to frame coordinates: T(o) M T(-o)
     fitted[:, 2] += origin - fitted[:, :2] @ origin
-    return Motion(fitted, support, len(pts), tracked, measured)
+    return Motion(fitted, support, len(pts), tracked)
 
 
 def _background(frames: FramePair, half_nodes: NDArray[np.float64]) -> NDArray[np.float64] | None:

@@ -6,10 +6,7 @@ Here the question is asked cheaply, by two warps of the previous frame:
 
 1. the background's motion is a similarity fitted (RANSAC) to corners
    tracked (pyramidal Lucas-Kanade) outside the previous contour
-   (:func:`engine.tracking.background.background_motion`): the one the motion
-   model measured for its figure-ground step
-   (:attr:`engine.tracking.stages.Prediction.background`), the crowd's for a
-   session of several objects, or else one measured here;
+   (:func:`engine.tracking.background.background_motion`);
 2. the object's is the motion model's similarity
    (:attr:`engine.tracking.stages.Prediction.matrix`);
 3. each pixel of the current region is compared with the previous frame
@@ -31,9 +28,7 @@ the thirty training sequences, measuring them at half resolution lost most of
 the gain (J 0.651 against 0.667, mean of five node counts).  The background's
 similarity is fitted coarsely (``background_motion(coarse=True)``: corners at a
 quarter of the resolution, tracked at half), 0.2 ms less a frame for J 0.7426
-against 0.7432, and two generated clips of 456 that no longer pass.  Reading
-the motion model's fit instead of measuring a second one saves about 0.5 ms a
-frame (``docs/tracking-log.md``).
+against 0.7432, and two generated clips of 456 that no longer pass.
 Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 """
 
@@ -90,10 +85,10 @@ def motion_ratio(
         2 x 3 similarity mapping ``[x, y, 1]`` of ``previous`` to ``current``:
         the object's motion.
     background : numpy.ndarray, None or "measure"
-        The background's frame similarity already measured (over the whole
-        frame for a session of several objects, :mod:`engine.tracking.shared`,
-        or around the contour by the motion model; None: it could not be), or
-        :data:`~engine.tracking.background.MEASURE` it in the region.
+        The background's frame similarity measured over the whole frame (a
+        session of several objects, :mod:`engine.tracking.shared`; None: it
+        could not be), or :data:`~engine.tracking.background.MEASURE` it in
+        the region.
 
     Returns
     -------

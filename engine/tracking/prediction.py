@@ -147,7 +147,7 @@ class FlowMotion:
             bent = predicted + num / np.maximum(den, MIN_WEIGHT)
             if valid_contour(bent, current.shape, nodes):
                 predicted = bent
-        return Prediction(predicted, rigid, motion.matrix, motion.inlier_ratio, motion.background)
+        return Prediction(predicted, rigid, motion.matrix, motion.inlier_ratio)
 
     def to_state(self) -> dict[str, Any]:
         """``{"kind", "features": [[x, y], ...] or None}``: the corners being tracked."""

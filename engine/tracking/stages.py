@@ -94,18 +94,12 @@ class Prediction:
     support : float
         In [0, 1]: how well the image supported the motion (share of
         agreeing tracked points); part of the tracker's confidence.
-    background : numpy.ndarray or None
-        2 x 3 float64 similarity of the background around the contour from the
-        previous frame to the current one, when the motion model measured it
-        (the motion contrast reads it instead of measuring it again); None when
-        it did not.
     """
 
     nodes: NDArray[np.float64]
     rigid: NDArray[np.float64]
     matrix: NDArray[np.float64]
     support: float
-    background: NDArray[np.float64] | None = None
 
     @classmethod
     def still(cls, nodes: NDArray[np.float64]) -> Prediction:

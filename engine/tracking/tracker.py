@@ -536,8 +536,7 @@ class Tracker:
             return None
         matrix = prediction.matrix.copy()
         matrix[:, 2] += found.mean(axis=0) - prediction.nodes.mean(axis=0)
-        # between the same two frames: the background moved as the motion model measured
-        return Prediction(found, found, matrix, prediction.support, prediction.background)
+        return Prediction(found, found, matrix, prediction.support)
 
     def _predicted(self, grey: NDArray[np.uint8], prediction: Prediction) -> TrackResult:
         """The predicted contour as the frame's result, just below ``tracking``: on the

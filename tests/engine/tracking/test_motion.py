@@ -123,25 +123,3 @@ def test_too_few_features_are_replaced_by_new_corners(grey: U8) -> None:
         grey, grey.copy(), NODES, max_features=40, features=np.array([[80.0, 60.0]], np.float32)
     )
     assert motion.points > len(NODES[::4]) + 1
-
-
-def test_the_background_measured_for_figure_ground_is_handed_on_in_frame_pixels(
-    grey: U8,
-) -> None:
-    # the object shifted one way, the view panned the other: the background's similarity
-    # comes back in the frame's [x, y] pixels, for the motion contrast to read
-    disc = np.asarray(cv2.cvtColor(textured_frame(7, H, W), cv2.COLOR_BGR2GRAY), np.uint8)
-    inside = cv2.fillPoly(np.zeros((H, W), np.uint8), [NODES.round().astype(np.int32)], 1) > 0
-    pan, move = np.array([[1.0, 0.0, 4.0], [0.0, 1.0, -2.0]]), CASES["sub-pixel"]
-    moved = cv2.fillPoly(
-        np.zeros((H, W), np.uint8), [transformed(move, NODES).round().astype(np.int32)], 1
-    )
-    before = np.where(inside, disc, grey).astype(np.uint8)
-    after = np.where(moved > 0, warp(disc, move), warp(grey, pan)).astype(np.uint8)
-    motion = estimate_motion(before, after, NODES, figure_ground=True)
-    assert motion.background is not None
-    np.testing.assert_allclose(motion.background, pan, atol=0.3)
-    # not asked to measure it (no figure-ground, or given the crowd's): none handed on
-    assert estimate_motion(before, after, NODES).background is None
-    given = estimate_motion(before, after, NODES, figure_ground=True, background=pan)
-    assert given.background is None

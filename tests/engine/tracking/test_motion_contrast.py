@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from typing import Any
 
 import cv2
 import numpy as np
@@ -144,33 +143,3 @@ def test_a_state_from_before_the_motion_contrast_resumes_without_it() -> None:
         np.testing.assert_array_equal(got.nodes, want.nodes)
         assert got.confidence == want.confidence
         assert not np.array_equal(other.nodes, want.nodes)  # the cue is at work here
-
-
-def test_the_motion_contrast_reads_the_background_the_motion_model_measured(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    """One background fit a frame: the motion model's, not a second one in the region."""
-    import engine.tracking.motion_contrast as contrast
-    from engine.tracking.background import background_motion
-
-    frames, _ = camouflaged(6)
-    measured: list[object] = []
-
-    def spy(*args: object, **kwargs: object) -> NDArray[np.float32] | None:
-        measured.append(kwargs.get("background"))
-        return motion_ratio(*args, **kwargs)  # type: ignore[arg-type]
-
-    monkeypatch.setattr("engine.tracking._attempt.motion_ratio", spy)
-    calls: list[int] = []
-
-    def counted(*args: Any, **kwargs: Any) -> NDArray[np.float64] | None:
-        calls.append(1)
-        return background_motion(*args, **kwargs)
-
-    monkeypatch.setattr(contrast, "background_motion", counted)
-    tracker = engine.Tracker(NODES)
-    for frame in frames:
-        tracker.step(frame)
-    assert len(measured) >= len(frames) - 1  # a search's second attempt reads it too
-    assert all(isinstance(b, np.ndarray) and b.shape == (2, 3) for b in measured)
-    assert not calls
