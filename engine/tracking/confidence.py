@@ -73,16 +73,16 @@ SHAPE_GRID = 96
 room for a rectangle up to about 20 times as long as it is wide."""
 
 COEFFICIENTS = (
-    -3.5356,
-    2.4318,
-    -1.5429,
-    0.1243,
-    0.3836,
-    -0.1361,
-    -0.0215,
-    3.4672,
-    -0.9733,
-    -1.0561,
+    -3.4697,
+    2.3508,
+    -1.7402,
+    0.1143,
+    0.3816,
+    -0.1329,
+    -0.0303,
+    3.4367,
+    -0.8759,
+    -1.0141,
 )
 """Logistic model of the overlap: bias; mean p(object) inside, mean p(object) in the
 ring outside (as the appearance model sees them, occluders included); settled (1) or
@@ -94,17 +94,16 @@ and with the shapes of the last frames on the object (:attr:`Evidence.judged_sha
 usually are for this object (:attr:`Evidence.usual_inside`, :attr:`Evidence.usual_outside`).
 Fitted by cross-entropy to the IoU of every scored frame of the thirty DAVIS-2016
 training sequences tracked with the default options from five node counts (10,095
-frames; ``python -m bench.tracking.confidence`` prints the fit), its bias -3.8174 raised
-by 0.2818 so that the rule's threshold, which keeps 99 % of their good frames
+frames; ``python -m bench.tracking.confidence`` prints the fit), its bias -3.6799 raised
+by 0.2102 so that the rule's threshold, which keeps 98.5 % of their good frames
 ``tracking``, falls on :data:`TRACKING_FROM`.  Refitted whenever the tracks or an input
-change; last on 2026-11-30, afternoon, when a large object began to be tracked on a grid
-of its size (:attr:`engine.tracking.options.TrackerOptions.object_side`; the weights
-moved by under 0.2).  On 2026-11-30, morning, when the recent shapes were added, the
+change; last on 2026-11-30, evening, when a track's grid began to follow its object's
+size (:mod:`engine.tracking.regrid`; the weights moved by under 0.2).  On 2026-11-30, morning, when the recent shapes were added, the
 inside's weight fell from 4.90 to 2.45 and the shape's rose from 2.65 to 3.60: a
 well-tracked object keeps a shape like its last frames', and the inside's colour no
 longer stands in for it.  Every refit and its figures: ``docs/tracking-log.md``, "The
 confidence model's refits".  On five folds of those sequences, fitted on four and scored
-on the fifth, the mean |confidence - IoU| is 0.087, and 0.097 on the five validation
+on the fifth, the mean |confidence - IoU| is 0.088, and 0.094 on the five validation
 sequences as shipped.
 The shape is what tells a contour that slid onto object-coloured background, or shrank
 onto one part of the object, from one on the object: both look object-like inside.  The
@@ -113,16 +112,16 @@ p = 0.47 is a contour slid onto a banner of the rider's colours when it was 0.2 
 start, and an object among its own colours when it always was; read together, the two
 weights say "the inside as it is, the ring compared with its usual"."""
 GREY_COEFFICIENTS = (
-    -2.9329,
-    -0.0054,
-    -1.8035,
-    0.2268,
-    0.5358,
-    -0.7693,
-    0.0511,
-    4.4044,
-    1.3826,
-    0.1197,
+    -2.9437,
+    -0.0177,
+    -1.8338,
+    0.2334,
+    0.4782,
+    -0.7865,
+    0.0537,
+    4.4834,
+    1.6245,
+    -0.0363,
 )
 """The model of :data:`COEFFICIENTS`, its inputs the same, for grey frames: those whose
 colour models read texture (:attr:`engine.tracking.options.TrackerOptions.grey_texture`,
@@ -132,10 +131,10 @@ sharply than by colour, and the colour frames' model called too many good contou
 of the 7,160 frames with IoU >= 0.6 ``tracking``, 96.1 % of the 765 with IoU < 0.2 not
 (at the colour threshold of 0.550).
 Fitted as that one was, on the same sequences in grey (``python -m
-bench.tracking.confidence --grey``; refitted on 2026-11-30, afternoon, when a large
-object began to be tracked on a grid of its size; bias -3.1789 as fitted), with its bias
-then raised by 0.2460 so that the threshold the rule chooses for it (0.479: keep 99 % of
-the good frames ``tracking``) falls on :data:`TRACKING_FROM`, and one threshold serves
+bench.tracking.confidence --grey``; refitted on 2026-11-30, evening, when a track's grid
+began to follow its object's size; bias -3.2239 as fitted), with its bias then raised by
+0.2802 so that the threshold the rule chooses for it (0.470: keep 99 % of the good
+frames ``tracking``) falls on :data:`TRACKING_FROM`, and one threshold serves
 both kinds of frame; the rule then returns :data:`TRACKING_FROM` for it.  The inside's
 texture weighs nothing (-0.005): in grey the shape and the ring say it.  The whole rule on
 folds of the thirty in grey, fitted on four and scored on the fifth: 96.9 % of the 7,367 good frames

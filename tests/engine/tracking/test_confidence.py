@@ -269,15 +269,15 @@ def test_the_tracker_reads_a_grey_frames_evidence_with_the_grey_model(
 
 def test_the_ring_is_read_against_how_it_usually_looks() -> None:
     """A ring as object-like as a banner of the rider's colours, round a contour half of
-    the first frame's shape and fairly like its last frames' (0.7): lost when the ring was
+    the first frame's shape and fairly like its last frames' (0.75): lost when the ring was
     clear at the start, the object among its own colours when it always looked so.  (Since
     the recent shapes the model weighs the usual look less and the shape more: the ring's
     change decides in a narrower band of shapes.)"""
     slid = Evidence(
-        0.85, 0.47, False, shape=0.5, usual_inside=0.85, usual_outside=0.2, recent_shape=0.7
+        0.85, 0.47, False, shape=0.5, usual_inside=0.85, usual_outside=0.2, recent_shape=0.75
     )
     always = Evidence(
-        0.85, 0.47, False, shape=0.5, usual_inside=0.85, usual_outside=0.47, recent_shape=0.7
+        0.85, 0.47, False, shape=0.5, usual_inside=0.85, usual_outside=0.47, recent_shape=0.75
     )
     assert calibrated(slid) < TRACKING_FROM <= calibrated(always)
     assert calibrated(slid) == pytest.approx(_uncapped(slid))
