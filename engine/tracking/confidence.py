@@ -98,8 +98,9 @@ frames; ``python -m bench.tracking.confidence`` prints the fit), its bias -3.679
 by 0.2102 so that the rule's threshold, which keeps 98.5 % of their good frames
 ``tracking``, falls on :data:`TRACKING_FROM`.  Refitted whenever the tracks or an input
 change; last on 2026-11-30, evening, when a track's grid began to follow its object's
-size (:mod:`engine.tracking.regrid`; the weights moved by under 0.2).  On 2026-11-30, morning, when the recent shapes were added, the
-inside's weight fell from 4.90 to 2.45 and the shape's rose from 2.65 to 3.60: a
+size (:mod:`engine.tracking.regrid`; the weights moved by under 0.2).  On 2026-11-30,
+morning, when the recent shapes were added, the inside's weight fell from 4.90 to 2.45
+and the shape's rose from 2.65 to 3.60: a
 well-tracked object keeps a shape like its last frames', and the inside's colour no
 longer stands in for it.  Every refit and its figures: ``docs/tracking-log.md``, "The
 confidence model's refits".  On five folds of those sequences, fitted on four and scored
