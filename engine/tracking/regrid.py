@@ -50,9 +50,19 @@ one every frame as its size wavers."""
 
 
 def grid_lines(shape: tuple[int, int], side: int) -> int:
-    """The lines of the grid of ``side`` (0: none) for frames of ``shape`` ``(height, width)``."""
-    shorter = min(shape)
-    return shorter if side <= 0 else min(side, shorter)
+    """The lines of the grid of ``side`` (0: none) for frames of ``shape`` ``(height, width)``.
+
+    Raises
+    ------
+    ValueError
+        If ``shape`` is not two positive sides or ``side`` is negative.
+    """
+    if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < 1:
+        raise ValueError(f"shape must be (height, width) of positive sides; got {shape}")
+    if side < 0:
+        raise ValueError(f"side must be 0 (none) or positive; got {side}")
+    shorter = min(int(shape[0]), int(shape[1]))
+    return shorter if side == 0 else min(int(side), shorter)
 
 
 def follow_size(tracker: Tracker) -> bool:
@@ -115,8 +125,19 @@ def rescaled_map(
 ) -> tuple[tuple[int, int], NDArray[np.uint8]]:
     """A map of a region of the old grid (``values`` at ``origin``, ``(x, y)`` of its
     top-left pixel) on the new one: its corners moved by ``move`` and the map resized
-    (bilinear) to fit them, to within half a pixel."""
-    h, w = values.shape[:2]
+    (bilinear) to fit them, to within half a pixel.
+
+    Raises
+    ------
+    ValueError
+        If ``values`` is not a non-empty H x W uint8 map or ``origin`` not two
+        non-negative integers.
+    """
+    if values.ndim != 2 or values.dtype != np.uint8 or values.size == 0:
+        raise ValueError(f"values must be a non-empty H x W uint8 map; got {values.shape}")
+    if len(origin) != 2 or not all(isinstance(v, int | np.integer) and v >= 0 for v in origin):
+        raise ValueError(f"origin must be two non-negative integers (x, y); got {origin}")
+    h, w = values.shape
     x0, y0 = origin
     corners = np.array([[x0 - 0.5, y0 - 0.5], [x0 + w - 0.5, y0 + h - 0.5]], np.float64)
     (a, b), (c, d) = np.rint(move(corners) + 0.5).astype(int)

@@ -136,3 +136,24 @@ def test_a_map_is_moved_onto_the_new_grid_to_within_half_a_pixel() -> None:
 )
 def test_grid_lines(shape: tuple[int, int], side: int, expected: int) -> None:
     assert grid_lines(shape, side) == expected
+
+
+@pytest.mark.parametrize(("shape", "side"), [((0, 854), 0), ((480,), 0), ((480, 854), -1)])
+def test_grid_lines_refuses_a_bad_shape_or_side(shape: Any, side: int) -> None:
+    with pytest.raises(ValueError, match="must be"):
+        grid_lines(shape, side)
+
+
+@pytest.mark.parametrize(
+    ("origin", "values"),
+    [
+        ((0, 0), np.zeros((0, 4), np.uint8)),
+        ((0, 0), np.zeros((4, 4, 3), np.uint8)),
+        ((0, 0), np.zeros((4, 4), np.float32)),
+        ((-1, 0), np.zeros((4, 4), np.uint8)),
+        ((0.5, 0), np.zeros((4, 4), np.uint8)),
+    ],
+)
+def test_a_bad_map_is_refused(origin: Any, values: Any) -> None:
+    with pytest.raises(ValueError, match="must be"):
+        rescaled_map(origin, values, lambda p: p)
