@@ -13,6 +13,7 @@ from engine.testing.synthetic import make_sequence
 from engine.tracking import Tracker
 from engine.tracking.confidence import TRACKING_FROM
 from engine.tracking.regrid import CHANGE, follow_size, grid_lines, rescaled_map
+from engine.tracking.working import object_grid_side
 from tests.engine.tracking.moving_disc import U8, assert_same, run, through_json
 
 SIZE = (240, 320)
@@ -46,7 +47,8 @@ def follow(seed: int, **options: Any) -> tuple[list[int], list[float]]:
 
 def test_a_growing_object_moves_to_coarser_grids_and_is_followed() -> None:
     grids, overlaps = follow(5, object_side=SIDE)
-    assert grids[0] == grid_lines(SIZE, round(SIZE[0] * SIDE / 43)) or grids[0] < SIZE[0]
+    first = mask_to_contour(clip(5)[1][0], 96)
+    assert grids[0] == object_grid_side(SIZE, first, 480, SIDE) < SIZE[0]  # as a track starts
     changes = [b for a, b in pairwise(grids) if a != b]
     assert len(changes) >= 2  # 43 -> 84 px: about twice the size, three quarter steps
     assert all(b < a for a, b in pairwise(grids) if a != b)
