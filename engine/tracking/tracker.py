@@ -23,7 +23,8 @@ and the physics.  Per frame (``step``):
 
 Frames larger than the option ``working_side`` (480 lines) are tracked downscaled to it,
 and a large object (its first contour's area over ``object_side``², 160² px²) on a grid
-smaller by as much as it is larger (:mod:`engine.tracking.working`); contours in and out
+smaller by as much as it is larger (:mod:`engine.tracking.working`), a grid that follows
+the object as it grows or shrinks (:mod:`engine.tracking.regrid`); contours in and out
 are in the frame's own pixels.  A
 grey frame is described to the colour models by its grey level and two texture channels
 (option ``grey_texture``, :mod:`engine.tracking.texture`); so is a tinted monochrome one
