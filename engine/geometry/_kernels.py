@@ -172,3 +172,33 @@ def least_squares_similarity(
     out[0, 0], out[0, 1], out[0, 2] = a, -b, dx - (a * sx - b * sy)
     out[1, 0], out[1, 1], out[1, 2] = b, a, dy - (b * sx + a * sy)
     return out, True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def extent(nodes: NDArray[np.float64]) -> tuple[float, float, float, float]:
+    """``(min x, min y, max x, max y)`` of (N >= 1, 2) points; NaN ones if any is NaN (as
+    numpy's ``min`` and ``max`` would give)."""
+    x0, y0 = nodes[0, 0], nodes[0, 1]
+    x1, y1 = x0, y0
+    for i in range(nodes.shape[0]):
+        x, y = nodes[i, 0], nodes[i, 1]
+        if x != x or y != y:
+            return math.nan, math.nan, math.nan, math.nan
+        x0, x1 = min(x0, x), max(x1, x)
+        y0, y1 = min(y0, y), max(y1, y)
+    return x0, y0, x1, y1
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def fixed_point(nodes: NDArray[np.float64], scale: float, limit: float) -> NDArray[np.int32]:
+    """(N, 1, 2) int32 ``round(clip(nodes, -limit, limit) * scale)`` (half to even, as
+    ``numpy.round``), or (0, 1, 2) when a node is not finite."""
+    n = nodes.shape[0]
+    out = np.empty((n, 1, 2), np.int32)
+    for i in range(n):
+        for k in range(2):
+            v = nodes[i, k]
+            if not math.isfinite(v):
+                return out[:0]
+            out[i, 0, k] = np.int32(np.rint(min(max(v, -limit), limit) * scale))
+    return out

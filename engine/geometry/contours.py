@@ -246,10 +246,15 @@ def bounding_box(
     tuple of int
         ``(x0, y0, x1, y1)``: the region ``image[y0:y1, x0:x1]``.
     """
+    from engine.geometry._kernels import extent
+
+    if len(nodes) == 0:
+        raise ValueError("nodes is empty: there is no box around them")
     h, w = shape[:2]
     grow = before if after is None else after
-    x0, y0 = (int(v) - before for v in np.floor(nodes.min(axis=0)))
-    x1, y1 = (int(v) + grow for v in np.ceil(nodes.max(axis=0)))
+    low_x, low_y, high_x, high_y = extent(np.ascontiguousarray(nodes, dtype=np.float64))
+    x0, y0 = math.floor(low_x) - before, math.floor(low_y) - before
+    x1, y1 = math.ceil(high_x) + grow, math.ceil(high_y) + grow
     if not keep_inside:
         return max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
     x0, y0 = min(max(x0, 0), w - 1), min(max(y0, 0), h - 1)
@@ -265,12 +270,20 @@ def contour_to_mask(nodes: Nodes, shape: tuple[int, ...]) -> NDArray[np.uint8]:
     DAVIS reference scores this project quotes were computed with the same
     rule (our static baseline reproduces them exactly), so we keep it.
     """
+    from engine.geometry._kernels import fixed_point
+
     mask = np.zeros(shape[:2], dtype=np.uint8)
-    if len(nodes) >= 3 and np.isfinite(nodes).all():
-        shift = 4
-        scaled = np.round(np.clip(nodes, -1e6, 1e6) * (1 << shift)).astype(np.int32)
-        cv2.fillPoly(mask, [scaled.reshape(-1, 1, 2)], 255, lineType=cv2.LINE_8, shift=shift)
+    if len(nodes) >= 3:
+        # vertices to 1/16 pixel, kept within OpenCV's coordinate range; none if any is
+        # not finite
+        scaled = fixed_point(np.ascontiguousarray(nodes, dtype=np.float64), 1 << _SHIFT, 1e6)
+        if len(scaled):
+            cv2.fillPoly(mask, [scaled], 255, lineType=cv2.LINE_8, shift=_SHIFT)
     return mask
+
+
+_SHIFT = 4
+"""Fractional bits of :func:`contour_to_mask`'s vertices (OpenCV's ``shift``): 1/16 pixel."""
 
 
 def mask_to_contour(mask: ArrayLike, count: int, *, offset: tuple[int, int] = (0, 0)) -> Nodes:

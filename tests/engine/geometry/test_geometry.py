@@ -451,6 +451,48 @@ def test_bounding_box_region_holds_every_node() -> None:
     assert (np.round(nodes[:, 1]) < y1).all()
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(np.float64, st.tuples(st.integers(1, 40), st.just(2)), elements=st.floats(-5e6, 5e6)),
+    st.integers(0, 20),
+)
+def test_bounding_box_is_numpys_floor_and_ceil_of_the_extremes(
+    nodes: NDArray[np.float64], m: int
+) -> None:
+    """The compiled extremes give the box numpy's ``min``/``max`` would."""
+    h = w = 10**7
+    expected = (
+        max(int(np.floor(nodes[:, 0].min())) - m, 0),
+        max(int(np.floor(nodes[:, 1].min())) - m, 0),
+        min(int(np.ceil(nodes[:, 0].max())) + m, w),
+        min(int(np.ceil(nodes[:, 1].max())) + m, h),
+    )
+    assert bounding_box((h, w), nodes, m, keep_inside=False) == expected
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_bounding_box_refuses_empty_and_non_finite_nodes(bad: float) -> None:
+    with pytest.raises(ValueError, match="empty"):
+        bounding_box((10, 10), np.zeros((0, 2)), 1)
+    nodes = BOXED.copy()
+    nodes[2, 0] = bad
+    with pytest.raises((ValueError, OverflowError)):
+        bounding_box((100, 100), nodes, 1)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.float64, st.tuples(st.integers(3, 24), st.just(2)), elements=st.floats(-3e6, 3e6)))
+def test_contour_to_mask_vertices_are_numpys_rounding(nodes: NDArray[np.float64]) -> None:
+    """The compiled fixed-point vertices are ``round(clip(v) * 16)`` (half to even), as numpy."""
+    from engine.geometry._kernels import fixed_point
+
+    halves = np.round(nodes * 2.0) / 2.0  # many exact halves: the rounding's ties
+    for points in (nodes, halves / 16.0):
+        expected = np.round(np.clip(points, -1e6, 1e6) * 16).astype(np.int32)
+        got = fixed_point(np.ascontiguousarray(points), 16, 1e6)
+        np.testing.assert_array_equal(got.reshape(-1, 2), expected)
+
+
 def test_any_in_frame_asks_for_a_node_inside_not_an_overlap() -> None:
     """``[x, y]`` against (height, width): a contour around the whole frame has none in it."""
     assert any_in_frame(np.array([[9.5, 4.0], [20.0, 20.0], [30.0, 4.0]]), (5, 10))
