@@ -245,6 +245,11 @@ def bounding_box(
     -------
     tuple of int
         ``(x0, y0, x1, y1)``: the region ``image[y0:y1, x0:x1]``.
+
+    Raises
+    ------
+    ValueError
+        If there are no nodes, or one is NaN (an infinite one: OverflowError).
     """
     from engine.geometry._kernels import extent
 

@@ -28,6 +28,8 @@ def warm_up() -> None:
     geometry.nearest(square, square)
     geometry.resample_polyline(square, 4, True)
     geometry.least_squares_similarity(square, square, np.ones(len(square), dtype=np.bool_))
+    geometry.extent(square)
+    geometry.fixed_point(square, 16, 1e6)
     table = np.zeros(4096, np.float32)
     for picture in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):
         image.colour_bins(picture, 5, 4)
