@@ -35,7 +35,7 @@ Coordinates are ``[x, y]`` pixels (x = column, y = row), as in OpenCV.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import cv2
@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import bounding_box, contour_to_mask
 from engine.tracking._state_codec import pack_raw, unpack_raw
+from engine.tracking.stages import Move
 
 __all__ = ["ABSORBED", "Lighting"]
 
@@ -170,7 +171,7 @@ class Lighting:
         lut = np.clip(np.round(table), 0, 255).astype(np.uint8)
         return np.asarray(cv2.LUT(image, lut.reshape(256, 1, -1)), dtype=np.uint8)
 
-    def rescale(self, move: Callable[[NDArray[np.float64]], NDArray[np.float64]]) -> None:
+    def rescale(self, move: Move) -> None:
         """The object's interior points on another grid (``move`` maps old-grid ``[x, y]``
         points onto it; :func:`engine.tracking.regrid.follow_size`).  The frame's sample,
         of the old grid's size, measures no change on the next frame and is then renewed."""
