@@ -233,6 +233,7 @@ def estimate_motion(
     figure_ground: bool = False,
     covered: NDArray[np.bool_] | None = None,
     background: Background = MEASURE,
+    frames: FramePair | None = None,
 ) -> Motion:
     """Similarity motion of the object between two grey frames.
 
@@ -279,13 +280,18 @@ def estimate_motion(
         With ``figure_ground``: the background's frame similarity measured
         over the whole frame (:mod:`engine.tracking.shared`; None: it could
         not be), or :data:`~engine.tracking.background.MEASURE` it here.
+    frames : FramePair, optional
+        ``FramePair.around(previous, current, nodes)`` made already (for the
+        turn too, :func:`engine.tracking.turn.measure_turn`), so as not to crop
+        and halve twice.
 
     Returns
     -------
     Motion
         Identity with zero support when too few points survive.
     """
-    frames = FramePair.around(previous, current, nodes)
+    if frames is None:
+        frames = FramePair.around(previous, current, nodes)
     before, after = frames.half_previous, frames.half_current
     h, w = before.shape
     if min(frames.previous.shape) < MIN_CROP:

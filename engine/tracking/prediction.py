@@ -33,7 +33,7 @@ from engine.geometry import outward_normals
 from engine.physics import deform
 from engine.tracking.background import MEASURE
 from engine.tracking.flow import DEPTH, node_flow, read_flow
-from engine.tracking.motion import Motion, estimate_motion
+from engine.tracking.motion import FramePair, Motion, estimate_motion
 from engine.tracking.shared import SharedMotion
 from engine.tracking.stages import Grey, Move, ObjectWeight, Prediction, check_kind
 from engine.tracking.validity import valid_contour
@@ -115,6 +115,7 @@ class FlowMotion:
         measured around the contour.
         """
         features = self._features if frame_index % REDETECT_EVERY else None
+        frames = FramePair.around(previous, current, nodes)  # for the turn too
         motion = estimate_motion(
             previous,
             current,
@@ -124,6 +125,7 @@ class FlowMotion:
             figure_ground=self.figure_ground,
             covered=covered,
             background=MEASURE if shared is None else shared.background,
+            frames=frames,
         )
         self._features = motion.tracked
         predicted = motion.apply(nodes)  # a similarity cannot make it cross itself
@@ -147,7 +149,7 @@ class FlowMotion:
             bent = predicted + num / np.maximum(den, MIN_WEIGHT)
             if valid_contour(bent, current.shape, nodes):
                 predicted = bent
-        return Prediction(predicted, rigid, motion.matrix, motion.inlier_ratio)
+        return Prediction(predicted, rigid, motion.matrix, motion.inlier_ratio, frames)
 
     def to_state(self) -> dict[str, Any]:
         """``{"kind", "features": [[x, y], ...] or None}``: the corners being tracked."""

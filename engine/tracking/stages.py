@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.tracking.maps import Maps
+from engine.tracking.motion import FramePair
 
 __all__ = [
     "AppearanceModel",
@@ -94,12 +95,18 @@ class Prediction:
     support : float
         In [0, 1]: how well the image supported the motion (share of
         agreeing tracked points); part of the tracker's confidence.
+    frames : FramePair or None
+        The two grey frames cropped around the previous contour, as the motion
+        was measured on them (``FramePair.around(previous, current, nodes)``):
+        for the stages that measure between the same two frames (the turn), so
+        that the crops and their halvings are made once; None when not made.
     """
 
     nodes: NDArray[np.float64]
     rigid: NDArray[np.float64]
     matrix: NDArray[np.float64]
     support: float
+    frames: FramePair | None = None
 
     @classmethod
     def still(cls, nodes: NDArray[np.float64]) -> Prediction:

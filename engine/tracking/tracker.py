@@ -460,7 +460,9 @@ class Tracker:
         if memory.outline is not None:
             motion = prediction.matrix
             if self.options.turn_outline and self._previous is not None:
-                angle = measure_turn(self._previous, grey, self._nodes, motion)
+                angle = measure_turn(
+                    self._previous, grey, self._nodes, motion, frames=prediction.frames
+                )
                 if angle is not None:  # the outline turns as far as the object
                     motion = turned(motion, self._nodes, angle)
             memory.outline = follow(memory.outline, motion, prediction.nodes, hold)

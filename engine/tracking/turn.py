@@ -51,6 +51,7 @@ __all__ = [
     "MIN_INTERIOR",
     "RIM_REACH",
     "TANGENTIAL_WEIGHT",
+    "interior_corners",
     "measure_turn",
     "turned",
 ]
@@ -76,6 +77,9 @@ MIN_INTERIOR: Final = 2
 """Fewest interior points to measure a turn: with fewer, the rim alone cannot."""
 _KEEP_OFF_RIM = np.ones((WINDOW + 2, WINDOW + 2), np.uint8)
 """The square the contour's inside is eroded by before corners are sought in it."""
+_SUPPORT = CORNER_BLOCK // 2 + 3
+"""Pixels around the interior a corner's response reads: the block's half side, the
+Sobel kernel's pixel, the local-maximum test's pixel, and one to spare."""
 
 
 def measure_turn(
@@ -83,6 +87,8 @@ def measure_turn(
     current: NDArray[np.uint8],
     nodes: NDArray[np.float64],
     matrix: NDArray[np.float64],
+    *,
+    frames: FramePair | None = None,
 ) -> float | None:
     """The object's rotation (radians) from ``previous`` to ``current``, or None.
 
@@ -96,6 +102,10 @@ def measure_turn(
         2 x 3 similarity of the object from ``previous`` to ``current`` (the
         prediction's, :attr:`engine.tracking.stages.Prediction.matrix`): the
         points' first guess, and the motion they must roughly agree with.
+    frames : FramePair, optional
+        ``FramePair.around(previous, current, nodes)`` made already (the
+        prediction's, :attr:`engine.tracking.stages.Prediction.frames`), so as
+        not to crop and halve again.
 
     Returns
     -------
@@ -117,7 +127,8 @@ def measure_turn(
     m = np.asarray(matrix, np.float64)
     if m.shape != (2, 3) or not np.isfinite(m).all():
         raise ValueError(f"matrix must be a finite 2 x 3 similarity; got shape {m.shape}")
-    frames = FramePair.around(before_full, after_full, nodes)
+    if frames is None:
+        frames = FramePair.around(before_full, after_full, nodes)
     before, after = frames.half_previous, frames.half_current
     if min(before.shape) <= WINDOW:
         return None
@@ -126,14 +137,7 @@ def measure_turn(
     inner = cv2.erode(contour_to_mask(half_nodes, before.shape), _KEEP_OFF_RIM)
     if not inner.any():
         return None
-    corners = cv2.goodFeaturesToTrack(
-        before,
-        maxCorners=INTERIOR_CORNERS,
-        qualityLevel=CORNER_QUALITY,
-        minDistance=CORNER_SPACING,
-        mask=np.asarray(inner, np.uint8),
-        blockSize=CORNER_BLOCK,
-    )
+    corners = interior_corners(before, np.asarray(inner, np.uint8))
     if corners is None:
         return None
     rim_points = half_nodes[::NODE_STRIDE].astype(np.float32)
@@ -176,6 +180,33 @@ def measure_turn(
     if np.count_nonzero(good & ~on_rim) < MIN_INTERIOR:
         return None
     return _normal_fit(src[good], dst[good], on_rim[good], nodes)
+
+
+def interior_corners(
+    grey: NDArray[np.uint8], inner: NDArray[np.uint8]
+) -> NDArray[np.float32] | None:
+    """The turn's corners: ``cv2.goodFeaturesToTrack`` of ``grey`` where ``inner`` is set.
+
+    Sought in the box of ``inner`` grown by :data:`_SUPPORT` only (the crop's margin is
+    mostly background, and about 0.1 ms a frame was spent on it): every response there
+    reads the same pixels as over the whole image, so the corners are the same, in the
+    same order, as those of the whole image.  ``(K, 1, 2)`` float32 ``[x, y]`` pixels of
+    ``grey`` (at most :data:`INTERIOR_CORNERS`), or None when there are none.
+    """
+    bx, by, bw, bh = cv2.boundingRect(inner)
+    x0, y0 = max(bx - _SUPPORT, 0), max(by - _SUPPORT, 0)
+    x1, y1 = min(bx + bw + _SUPPORT, grey.shape[1]), min(by + bh + _SUPPORT, grey.shape[0])
+    corners = cv2.goodFeaturesToTrack(
+        np.ascontiguousarray(grey[y0:y1, x0:x1]),
+        maxCorners=INTERIOR_CORNERS,
+        qualityLevel=CORNER_QUALITY,
+        minDistance=CORNER_SPACING,
+        mask=np.ascontiguousarray(inner[y0:y1, x0:x1]),
+        blockSize=CORNER_BLOCK,
+    )
+    if corners is None:
+        return None
+    return np.asarray(corners, np.float32) + np.array([x0, y0], np.float32)
 
 
 def _normal_fit(

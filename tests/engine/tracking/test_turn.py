@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, fit_similarity
@@ -204,3 +206,54 @@ def test_malformed_marks_are_refused(marks: object) -> None:
 def test_the_option_must_be_a_bool() -> None:
     with pytest.raises(ValueError, match="turn_outline must be true or false"):
         Tracker(circle_nodes((50.0, 50.0), 20.0, 32), turn_outline=1)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    width=st.integers(8, 90),
+    height=st.integers(8, 90),
+    box=st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)),
+)
+def test_the_interior_corners_are_those_of_the_whole_image(
+    seed: int, width: int, height: int, box: tuple[float, float, float, float]
+) -> None:
+    """Sought in the interior's box only, the corners are the whole image's, in its order."""
+    import cv2
+
+    from engine.tracking.motion import CORNER_BLOCK, CORNER_QUALITY, CORNER_SPACING
+    from engine.tracking.turn import INTERIOR_CORNERS, interior_corners
+
+    rng = np.random.default_rng(seed)
+    noise = rng.normal(128.0, 40.0, (height, width)).astype(np.float32)
+    grey = np.clip(cv2.GaussianBlur(noise, (0, 0), 1.2), 0, 255).astype(np.uint8)
+    inner = np.zeros((height, width), np.uint8)  # any rectangle, up to the image's edges
+    (a, b), (c, d) = (
+        sorted((box[0] * width, box[1] * width)),
+        sorted((box[2] * height, box[3] * height)),
+    )
+    inner[int(c) : int(d) + 1, int(a) : int(b) + 1] = 1
+    whole = cv2.goodFeaturesToTrack(
+        grey, INTERIOR_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=inner, blockSize=CORNER_BLOCK
+    )
+    found = interior_corners(grey, inner)
+    if whole is None:
+        assert found is None
+    else:
+        assert found is not None
+        np.testing.assert_array_equal(found, whole)
+
+
+def test_the_prediction_crops_serve_the_turn() -> None:
+    """Handed the motion's crops, the turn and the motion measure exactly as without them."""
+    from engine.tracking.motion import FramePair
+
+    nodes = circle_nodes(CENTRE, R, 64)
+    before, after = disc_frame(0.0, 0), disc_frame(2.0, 1)
+    frames = FramePair.around(before, after, nodes)
+    alone = estimate_motion(before, after, nodes)
+    given = estimate_motion(before, after, nodes, frames=frames)
+    np.testing.assert_array_equal(given.matrix, alone.matrix)
+    angle = measure_turn(before, after, nodes, alone.matrix)
+    assert angle is not None
+    assert measure_turn(before, after, nodes, alone.matrix, frames=frames) == angle
