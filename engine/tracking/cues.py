@@ -90,6 +90,15 @@ class RegionEdgeCues:
         self._memory = remembered.origin, _as_bytes(remembered.probability)
         return maps
 
+    def __deepcopy__(self, memo: dict[int, Any]) -> Self:
+        """A copy that shares the remembered p(object): these cues only ever replace it
+        (:meth:`maps`, :meth:`rescale`), never write into it, so sharing it is as good as
+        copying it, and the tracker copies its cues before every frame (should a search
+        retry the frame) at a tenth of a millisecond less."""
+        copied = type(self)(self.search_radius, self.occlusion, self.judge_front, self.reveal)
+        copied._memory = self._memory
+        return copied
+
     def rescale(self, move: Move, factor: float) -> None:
         """The remembered p(object) on another grid (:func:`engine.tracking.regrid.follow_size`):
         ``move`` maps old-grid ``[x, y]`` points onto it, ``factor`` its pixels per old one."""

@@ -195,3 +195,31 @@ def test_a_state_of_custom_stages_is_refused_by_the_defaults(frames: list[U8]) -
 def test_an_object_that_is_not_a_stage_is_refused(stage: str) -> None:
     with pytest.raises(ValueError, match=stage):
         Tracker(initial(), **{stage: object()})  # type: ignore[arg-type]
+
+
+def test_a_copy_of_the_cues_keeps_what_they_remembered(frames: list[U8]) -> None:
+    """The tracker copies its cues before a frame, should a search retry it: the copy
+    shares the remembered p(object) (the cues only ever replace it), so the original's
+    next frame must leave the copy's memory as it was, and the copy must make the same
+    maps as the original would have."""
+    import copy
+
+    tracker = Tracker(initial())
+    run(tracker, frames[:3])
+    cues = tracker.cues
+    assert isinstance(cues, RegionEdgeCues)
+    copied = copy.deepcopy(cues)
+    assert copied is not cues
+    points = tracker.nodes
+    before = cues.object_weight(points)
+    previous, grey = (
+        np.asarray(cv2.cvtColor(f, cv2.COLOR_BGR2GRAY), np.uint8) for f in frames[2:4]
+    )
+    weight = cues.object_weight
+    prediction = tracker.motion.predict(previous, grey, points, frame_index=3, object_weight=weight)
+    mine = cues.maps(frames[3], grey, prediction, tracker.appearance)
+    assert not np.array_equal(cues.object_weight(points), before)  # it did remember anew
+    np.testing.assert_array_equal(copied.object_weight(points), before)
+    theirs = copied.maps(frames[3], grey, prediction, tracker.appearance)
+    np.testing.assert_array_equal(theirs.probability, mine.probability)
+    np.testing.assert_array_equal(copied.object_weight(points), cues.object_weight(points))
