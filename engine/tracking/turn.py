@@ -51,7 +51,6 @@ __all__ = [
     "MIN_INTERIOR",
     "RIM_REACH",
     "TANGENTIAL_WEIGHT",
-    "interior_corners",
     "measure_turn",
     "turned",
 ]
@@ -137,7 +136,7 @@ def measure_turn(
     inner = cv2.erode(contour_to_mask(half_nodes, before.shape), _KEEP_OFF_RIM)
     if not inner.any():
         return None
-    corners = interior_corners(before, np.asarray(inner, np.uint8))
+    corners = _interior_corners(before, np.asarray(inner, np.uint8))
     if corners is None:
         return None
     rim_points = half_nodes[::NODE_STRIDE].astype(np.float32)
@@ -182,7 +181,7 @@ def measure_turn(
     return _normal_fit(src[good], dst[good], on_rim[good], nodes)
 
 
-def interior_corners(
+def _interior_corners(
     grey: NDArray[np.uint8], inner: NDArray[np.uint8]
 ) -> NDArray[np.float32] | None:
     """The turn's corners: ``cv2.goodFeaturesToTrack`` of ``grey`` where ``inner`` is set.

@@ -222,7 +222,7 @@ def test_the_interior_corners_are_those_of_the_whole_image(
     import cv2
 
     from engine.tracking.motion import CORNER_BLOCK, CORNER_QUALITY, CORNER_SPACING
-    from engine.tracking.turn import INTERIOR_CORNERS, interior_corners
+    from engine.tracking.turn import INTERIOR_CORNERS, _interior_corners
 
     rng = np.random.default_rng(seed)
     noise = rng.normal(128.0, 40.0, (height, width)).astype(np.float32)
@@ -236,7 +236,7 @@ def test_the_interior_corners_are_those_of_the_whole_image(
     whole = cv2.goodFeaturesToTrack(
         grey, INTERIOR_CORNERS, CORNER_QUALITY, CORNER_SPACING, mask=inner, blockSize=CORNER_BLOCK
     )
-    found = interior_corners(grey, inner)
+    found = _interior_corners(grey, inner)
     if whole is None:
         assert found is None
     else:
