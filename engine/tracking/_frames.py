@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["as_frame", "check_prepared", "repeatable_opencv"]
+__all__ = ["as_frame", "as_image", "check_prepared", "grey_of", "repeatable_opencv"]
 
 
 @contextlib.contextmanager
@@ -32,6 +32,20 @@ def repeatable_opencv() -> Iterator[None]:
 
 def as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     """Validate a frame; return it as (BGR or grey image, grey image)."""
+    image = as_image(frame)
+    return image, grey_of(image)
+
+
+def grey_of(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """The grey version of an image as :func:`as_image` returns it (itself if grey)."""
+    if image.ndim == 2:
+        return image
+    return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+
+
+def as_image(frame: Any) -> NDArray[np.uint8]:
+    """Validate a frame; return it as a contiguous BGR or grey image (no grey version made:
+    a frame tracked downscaled needs only its working grid's)."""
     if not isinstance(frame, np.ndarray):
         raise ValueError(f"frame must be a numpy array; got {type(frame).__name__}")
     if frame.dtype != np.uint8:
@@ -41,11 +55,9 @@ def as_frame(frame: Any) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     if frame.ndim == 3 and frame.shape[2] == 1:
         frame = frame[..., 0]
     if frame.ndim == 2:
-        grey = np.ascontiguousarray(frame)
-        return grey, grey
+        return np.ascontiguousarray(frame)
     if frame.ndim == 3 and frame.shape[2] in (3, 4):
-        colour = np.ascontiguousarray(frame[..., :3])
-        return colour, np.asarray(cv2.cvtColor(colour, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+        return np.ascontiguousarray(frame[..., :3])
     raise ValueError(f"frame must be H x W grey or H x W x 3 BGR; got shape {frame.shape}")
 
 

@@ -48,7 +48,9 @@ from numpy.typing import ArrayLike, NDArray
 from engine.geometry import any_in_frame, as_nodes, polygon_area, resample
 from engine.tracking._attempt import BEHIND_FROM, track_around
 from engine.tracking._frames import as_frame as _as_frame
+from engine.tracking._frames import as_image as _as_image
 from engine.tracking._frames import check_prepared
+from engine.tracking._frames import grey_of as _grey_of
 from engine.tracking._frames import repeatable_opencv as _repeatable_opencv
 from engine.tracking._tracker_state import restore, snapshot
 from engine.tracking.appearance import ColourHistogram
@@ -353,7 +355,9 @@ class Tracker:
         ValueError
             If the frame is not a non-empty uint8 image.
         """
-        return self.step_prepared(*_as_frame(frame))
+        # the grey version is made on the grid the frame is tracked on: a frame brought
+        # down to a smaller one would convert its every pixel for nothing
+        return self._prepared(_as_image(frame), None, Crowd())
 
     def step_prepared(
         self,
@@ -381,13 +385,22 @@ class Tracker:
         """
         crowd = crowd or Crowd()
         check_prepared(image, grey, crowd.covered)
+        return self._prepared(image, grey, crowd)
+
+    def _prepared(
+        self, image: NDArray[np.uint8], grey: NDArray[np.uint8] | None, crowd: Crowd
+    ) -> TrackResult:
+        """:meth:`step_prepared` on a checked frame, whose grey version (None: not made
+        yet) is made here only if the frame is tracked at its own size."""
         covered, shared = crowd.covered, crowd.shared
         if covered is not None and not covered.any():
             covered = None  # nothing in front: exactly as a tracker alone
-        if grey.shape != self._frame_shape:
-            self._regrid((grey.shape[0], grey.shape[1]))
+        if image.shape[:2] != self._frame_shape:
+            self._regrid((image.shape[0], image.shape[1]))
         else:  # an object that grew or shrank much: tracked on a grid of its new size
             follow_size(self)
+        if grey is None and (self._scale is None or crowd.working is not None):
+            grey = _grey_of(image)  # (outside the IPP-free context, as it always was)
         with _repeatable_opencv():
             scale, smoothing = self._scale, crowd.smoothing
             if scale is not None:  # on the working grid (the shared measures too, if theirs)
@@ -395,8 +408,10 @@ class Tracker:
                     image, grey = _as_frame(scale.image(image))
                     smoothing = None
                 else:  # brought down (and smoothed) once for the trackers of the frame
+                    assert grey is not None  # made above
                     image, grey, smoothing = crowd.working.at(scale, image, grey)
                 covered = None if covered is None else scale.mask(covered)
+            assert grey is not None  # made above, or on the working grid
             if shared is not None and not shared.applies_to(self._previous, grey):
                 shared = None
             grey_frame = is_grey(image)

@@ -144,3 +144,32 @@ def test_a_state_with_a_bad_grid_side_is_refused(grid_side: Any, frames: list[U8
     state["grid_side"] = grid_side  # 100: not the grid the previous frame is on
     with pytest.raises(ValueError, match="malformed tracker state"):
         Tracker.from_state(state)
+
+
+def test_a_frame_tracked_on_a_smaller_grid_is_made_grey_there_only(
+    frames: list[U8], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``step`` converts to grey on the grid the frame is tracked on, not the frame as given,
+    and tracks exactly as ``step_prepared`` handed the frame and its grey version."""
+    import cv2
+
+    from engine.tracking._frames import as_frame
+
+    big = [upscaled(f, UP) for f in frames[:5]]
+    prepared = Tracker(larger(initial(), UP), object_side=SIDE)
+    expected = [prepared.step_prepared(*as_frame(frame)) for frame in big]
+    sizes: list[tuple[int, ...]] = []
+    convert = cv2.cvtColor
+
+    def counted(image: U8, code: int) -> U8:
+        sizes.append(image.shape[:2])
+        return np.asarray(convert(image, code), np.uint8)
+
+    monkeypatch.setattr(cv2, "cvtColor", counted)
+    stepped = run(Tracker(larger(initial(), UP), object_side=SIDE), big)
+    assert sizes  # the working grid's frames were made grey
+    assert big[0].shape[:2] not in sizes
+    for a, b in zip(stepped, expected, strict=True):
+        assert_same(a, b)
+    run(Tracker(initial()), frames[:3])  # tracked as given: made grey as given
+    assert frames[0].shape[:2] in sizes
