@@ -289,9 +289,16 @@ def estimate_motion(
     -------
     Motion
         Identity with zero support when too few points survive.
+
+    Raises
+    ------
+    ValueError
+        If ``frames`` is neither a :class:`FramePair` nor None.
     """
     if frames is None:
         frames = FramePair.around(previous, current, nodes)
+    elif not isinstance(frames, FramePair):
+        raise ValueError(f"frames must be a FramePair or None; got {type(frames).__name__}")
     before, after = frames.half_previous, frames.half_current
     h, w = before.shape
     if min(frames.previous.shape) < MIN_CROP:

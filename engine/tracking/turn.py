@@ -117,7 +117,8 @@ def measure_turn(
     ------
     ValueError
         If the frames are not two grey images of one shape, ``nodes`` are not
-        at least 3 finite ``[x, y]`` points, or ``matrix`` is not a finite 2 x 3.
+        at least 3 finite ``[x, y]`` points, ``matrix`` is not a finite 2 x 3, or
+        ``frames`` is neither a :class:`~engine.tracking.motion.FramePair` nor None.
     """
     before_full, after_full = np.asarray(previous), np.asarray(current)
     if before_full.ndim != 2 or before_full.shape != after_full.shape:
@@ -128,6 +129,8 @@ def measure_turn(
         raise ValueError(f"matrix must be a finite 2 x 3 similarity; got shape {m.shape}")
     if frames is None:
         frames = FramePair.around(before_full, after_full, nodes)
+    elif not isinstance(frames, FramePair):
+        raise ValueError(f"frames must be a FramePair or None; got {type(frames).__name__}")
     before, after = frames.half_previous, frames.half_current
     if min(before.shape) <= WINDOW:
         return None

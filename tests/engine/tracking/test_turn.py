@@ -257,3 +257,13 @@ def test_the_prediction_crops_serve_the_turn() -> None:
     angle = measure_turn(before, after, nodes, alone.matrix)
     assert angle is not None
     assert measure_turn(before, after, nodes, alone.matrix, frames=frames) == angle
+
+
+@pytest.mark.parametrize("frames", [object(), (np.zeros((4, 4), np.uint8),) * 2, "crops"])
+def test_crops_that_are_not_a_frame_pair_are_refused(frames: object) -> None:
+    nodes = circle_nodes(CENTRE, R, 64)
+    before, after = disc_frame(0.0, 0), disc_frame(2.0, 1)
+    with pytest.raises(ValueError, match="FramePair"):
+        estimate_motion(before, after, nodes, frames=frames)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="FramePair"):
+        measure_turn(before, after, nodes, IDENTITY, frames=frames)  # type: ignore[arg-type]
