@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import cv2
 import numpy as np
@@ -88,7 +89,7 @@ def test_a_contours_fit_tracks_fewer_corners_than_a_whole_frames(
     asked: list[tuple[int, int]] = []
     seek = cv2.goodFeaturesToTrack
 
-    def counted(image: U8, most: int, *args: object, **kwargs: object) -> object:
+    def counted(image: U8, most: int, *args: Any, **kwargs: Any) -> Any:
         found = seek(image, most, *args, **kwargs)
         asked.append((most, 0 if found is None else len(found)))
         return found

@@ -113,7 +113,9 @@ def test_first_step_returns_the_resampled_initial_contour(frames: list[U8]) -> N
     assert tracker.frame_index == 0
 
 
-def test_the_segmentation_learns_on_every_second_frame(frames: list[U8]) -> None:
+def test_the_segmentation_learns_on_every_second_frame(
+    frames: list[U8], monkeypatch: pytest.MonkeyPatch
+) -> None:
     tracker = Tracker(initial())
     learned: list[int] = []
     learn = tracker.segmentation.learn
@@ -122,12 +124,14 @@ def test_the_segmentation_learns_on_every_second_frame(frames: list[U8]) -> None
         learned.append(tracker.frame_index)
         learn(*args)
 
-    tracker.segmentation.learn = spy  # type: ignore[method-assign]
+    monkeypatch.setattr(tracker.segmentation, "learn", spy)
     run(tracker, frames[:7])
     assert learned == [2, 4, 6]  # frame 0 starts the stage instead
     # the cadence is the track's frame count: a state resumed mid-track keeps it
     resumed = Tracker.from_state(through_json(tracker.to_state()))
-    resumed.segmentation.learn = lambda *args: learned.append(resumed.frame_index)  # type: ignore[method-assign]
+    monkeypatch.setattr(
+        resumed.segmentation, "learn", lambda *args: learned.append(resumed.frame_index)
+    )
     run(resumed, frames[7:10])
     assert learned == [2, 4, 6, 8]
 
