@@ -41,16 +41,8 @@ Background: TypeAlias = NDArray[np.float64] | Literal["measure"] | None
 RING = 6
 """Background corners are sought beyond this many pixels of the contour: past
 the boundary's mixed pixels and the contour's own error."""
-MAX_CORNERS = 40
-"""Background corners of a fit around one contour: plenty for RANSAC's two-point
-similarity.  On the thirty training sequences over five node counts 80 / 40 / 24
-corners gave J 0.749 / 0.751 / 0.746 (decay +0.110 / +0.104 / +0.110), the generated
-conditions the same; 40 takes about 0.14 ms off the validation sequences' median frame
-(``docs/tracking-log.md``, 2026-11-30)."""
-FRAME_CORNERS = 80
-"""Background corners of a whole frame's fit (:func:`frame_background`, shared by the
-objects of a session): a whole frame, with the objects left out, has more background
-to cover than one contour's surroundings."""
+MAX_CORNERS = 80
+"""Background corners per frame: plenty for RANSAC, well under a millisecond."""
 CORNER_QUALITY = 0.01
 """Corners down to 1 % of the strongest one's response (weakly textured
 backgrounds still give some)."""
@@ -171,15 +163,7 @@ def frame_background(
     allowed = np.asarray(grown == 0, np.uint8)
     # half-resolution pixel u is frame pixel 2u + 1/2
     return _fit(
-        half_previous,
-        half_current,
-        quarter,
-        allowed,
-        (0, 0),
-        COARSE_SPACING,
-        COARSE_LEVELS,
-        2,
-        corners=FRAME_CORNERS,
+        half_previous, half_current, quarter, allowed, (0, 0), COARSE_SPACING, COARSE_LEVELS, 2
     )
 
 
@@ -200,18 +184,16 @@ def _fit(
     spacing: int = CORNER_SPACING,
     levels: int = LEVELS,
     scale: int = 1,
-    *,
-    corners: int = MAX_CORNERS,
 ) -> NDArray[np.float64] | None:
-    """At most ``corners`` corners of ``half`` (``previous`` halved) where ``allowed``,
-    tracked into ``current``, and the similarity RANSAC fits to them, in frame coordinates
-    (regions at ``origin`` whose pixel ``u`` is frame pixel ``scale * u + (scale - 1) / 2``)."""
-    found = cv2.goodFeaturesToTrack(
-        half, corners, CORNER_QUALITY, spacing, mask=allowed, blockSize=3
+    """Corners of ``half`` (``previous`` halved) where ``allowed``, tracked into ``current``,
+    and the similarity RANSAC fits to them, in frame coordinates (regions at ``origin``
+    whose pixel ``u`` is frame pixel ``scale * u + (scale - 1) / 2``)."""
+    corners = cv2.goodFeaturesToTrack(
+        half, MAX_CORNERS, CORNER_QUALITY, spacing, mask=allowed, blockSize=3
     )
-    if found is None or len(found) < MIN_POINTS:
+    if corners is None or len(corners) < MIN_POINTS:
         return None
-    start = np.asarray(found * 2 + 0.5, np.float32)  # half pixel u is region pixel 2u + 1/2
+    start = np.asarray(corners * 2 + 0.5, np.float32)  # half pixel u is region pixel 2u + 1/2
     end, found, _ = cv2.calcOpticalFlowPyrLK(
         previous, current, start, start.copy(), winSize=(WINDOW, WINDOW), maxLevel=levels
     )

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from typing import Any
 
 import cv2
 import numpy as np
@@ -12,7 +11,6 @@ from numpy.typing import NDArray
 
 import engine
 from engine.geometry import circle_nodes, contour_to_mask
-from engine.tracking import background
 from engine.tracking.background import background_motion, frame_background
 from engine.tracking.motion import FramePair, estimate_motion
 from tests.engine.scenes import shifted, textured_frame
@@ -80,27 +78,6 @@ def test_the_whole_frame_background_leaves_the_objects_out() -> None:
     np.testing.assert_array_equal(given, found)
     with_disc = frame_background(before, after, np.zeros((H, W), bool))
     assert with_disc is None or not np.allclose(with_disc[:, 2], pan, atol=0.3)
-
-
-def test_a_contours_fit_tracks_fewer_corners_than_a_whole_frames(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    # both fits find more corners than either cap on this textured ground
-    asked: list[tuple[int, int]] = []
-    seek = cv2.goodFeaturesToTrack
-
-    def counted(image: U8, most: int, *args: Any, **kwargs: Any) -> Any:
-        found = seek(image, most, *args, **kwargs)
-        asked.append((most, 0 if found is None else len(found)))
-        return found
-
-    monkeypatch.setattr(cv2, "goodFeaturesToTrack", counted)
-    before, after = scene((6.0, 0.0), (-3.0, 2.0))
-    assert background_motion(before, after, DISC) is not None
-    assert frame_background(before, after, contour_to_mask(DISC, (H, W)) > 0) is not None
-    (region_cap, region_found), (frame_cap, frame_found) = asked
-    assert (region_cap, frame_cap) == (background.MAX_CORNERS, background.FRAME_CORNERS)
-    assert region_found == background.MAX_CORNERS < frame_found <= background.FRAME_CORNERS
 
 
 def test_a_flat_or_tiny_frame_has_no_whole_frame_background() -> None:
