@@ -110,14 +110,18 @@ def parting_legs(steps: int) -> tuple[list[NDArray[np.uint8]], list[NDArray[np.u
 
 
 def test_the_tracker_follows_the_gap_between_parting_legs() -> None:
-    """Without the carving the contour spans the gap between the legs (0.93); with it, 0.99."""
+    """Without the carving the contour spans the gap between the legs as they part (its
+    worst frame 0.935; 0.915 when the local colours were learnt on every frame); with it,
+    0.978."""
     frames, masks = parting_legs(5)
 
-    def last_iou(carve_gaps: bool) -> float:
+    def worst_iou(carve_gaps: bool) -> float:
         tracker = Tracker(mask_to_contour(masks[0], 128), carve_gaps=carve_gaps)
-        for frame in frames:
-            result = tracker.step(frame)
-        return mask_iou(contour_to_mask(result.nodes, masks[-1].shape), masks[-1])
+        ious = []
+        for frame, mask in zip(frames, masks, strict=True):
+            nodes = tracker.step(frame).nodes
+            ious.append(mask_iou(contour_to_mask(nodes, mask.shape), mask))
+        return min(ious)
 
-    assert last_iou(True) >= 0.97
-    assert last_iou(False) < 0.95
+    assert worst_iou(True) >= 0.97
+    assert worst_iou(False) < 0.95
