@@ -83,7 +83,6 @@ def snapshot(tracker: Tracker, *, include_frame: bool, compact: bool) -> dict[st
     if previous is not None:  # the kind of frame the stages learnt from, and the other's look
         state["passed"] = tracker._passed  # frames passed over as a flash since it
         state["reported"] = tracker._reported  # the confidence last reported
-        state["segmented"] = tracker._segmented  # the frame the segmentation last learnt on
         aside = tracker._aside
         state["look"] = {
             "grey": tracker._look_grey,
@@ -178,14 +177,6 @@ def restore(make: Callable[..., Tracker], state: Mapping[str, Any]) -> Tracker:
             ):
                 raise ValueError(f"reported must be a confidence in [0, 1]; got {reported!r}")
             tracker._reported = float(reported)
-            # the frame itself: written before the segmentation learnt on every second frame
-            learnt = count(state.get("segmented", tracker.frame_index))
-            if learnt > tracker.frame_index:
-                raise ValueError(
-                    f"segmented must be a frame up to frame_index {tracker.frame_index}; "
-                    f"got {learnt}"
-                )
-            tracker._segmented = learnt
             tracker._previous = (
                 unpack_compact_frame(previous)
                 if isinstance(previous, Mapping)

@@ -207,8 +207,7 @@ class Segmentation(Protocol):
         """The first frame (or the first after a new contour): learn the object there."""
 
     def learn(self, image: Frame, nodes: NDArray[np.float64]) -> None:
-        """Learn from this frame's final contour (the tracker calls it on every second
-        frame, :data:`engine.tracking.tracker.SEGMENTATION_EVERY`)."""
+        """Learn from this frame's final contour."""
 
     def segment(
         self,

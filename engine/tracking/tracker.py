@@ -110,16 +110,6 @@ even when the object's texture gives the motion little support."""
 LEARN_ABOVE = 0.5
 """Only frames whose learning signal is at least this teach the appearance
 model, so that a lost or occluded object does not teach it the background."""
-SEGMENTATION_EVERY = 2
-"""The segmentation stage learns (:meth:`~engine.tracking.stages.Segmentation.learn`:
-the band cut's local colour models) on a frame at least this many after the one it last
-started or learnt on: the track's first frame, then every second one.  The colours along
-a boundary change little from one frame to the next, and a contour's error is learnt
-less often: on the thirty training sequences over five node counts, learning on every
-frame / every second / every third gave J 0.749 / 0.751 / 0.749 (decay +0.110 / +0.100
-/ +0.098), the generated conditions passing.  Every second frame takes about 0.23 ms off
-the validation sequences' median frame and 0.8 ms off their mean
-(``docs/tracking-log.md``, 2026-11-30)."""
 REACQUIRE_MARGIN = 0.05
 """A re-acquired contour must beat the local track's search score by this much:
 of two near-equal readings, the one that did not jump wins."""
@@ -255,8 +245,6 @@ class Tracker:
         # confidence last reported (a flash reports the last contour with no more)
         self._passed = 0
         self._reported = 1.0
-        # the frame the segmentation last started or learnt on (SEGMENTATION_EVERY)
-        self._segmented = -1
 
     @staticmethod
     def _initial(nodes: ArrayLike) -> NDArray[np.float64]:
@@ -550,9 +538,7 @@ class Tracker:
         if share < BEHIND_FROM:  # another object's colours are not this one's
             if signal >= LEARN_ABOVE:
                 self.appearance.update(image, self._nodes)
-            if self.frame_index - self._segmented >= SEGMENTATION_EVERY:
-                self.segmentation.learn(image, self._nodes)
-                self._segmented = self.frame_index
+            self.segmentation.learn(image, self._nodes)
         remember = not self._unconfirmed and remembered(attempt.evidence)
         return self._result(refinement.iterations, refinement.converged, confidence, remember)
 
@@ -594,7 +580,6 @@ class Tracker:
         self.appearance.fit(image, self._nodes)
         self.cues.start(image, self._nodes, self.appearance)
         self.segmentation.start(image, self._nodes)
-        self._segmented = self.frame_index
         if self.options.lighting:
             self._lighting.start(image, self._nodes)
         _, (x0, y0, x1, y1) = roi_box(image.shape, self._nodes, self.options.search_radius)

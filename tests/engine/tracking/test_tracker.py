@@ -113,49 +113,6 @@ def test_first_step_returns_the_resampled_initial_contour(frames: list[U8]) -> N
     assert tracker.frame_index == 0
 
 
-def test_the_segmentation_learns_on_every_second_frame(
-    frames: list[U8], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    tracker = Tracker(initial())
-    learned: list[int] = []
-    learn = tracker.segmentation.learn
-
-    def spy(*args: Any) -> None:
-        learned.append(tracker.frame_index)
-        learn(*args)
-
-    monkeypatch.setattr(tracker.segmentation, "learn", spy)
-    run(tracker, frames[:8])
-    assert learned == [2, 4, 6]  # frame 0 starts the stage instead
-    # a state resumed mid-track keeps the cadence, and one written when the stage learnt
-    # on every frame learns two frames after its last
-    state = through_json(tracker.to_state())
-    assert state["segmented"] == 6
-    legacy = dict(state)
-    del legacy["segmented"]
-    for resumed, then in ((Tracker.from_state(state), [8, 10]), (Tracker.from_state(legacy), [9])):
-        seen: list[int] = []
-        monkeypatch.setattr(
-            resumed.segmentation, "learn", lambda *a, t=resumed, s=seen: s.append(t.frame_index)
-        )
-        run(resumed, frames[8:11])
-        assert seen == then
-    # a new contour starts the stage anew, and the cadence from there
-    tracker.reset(circle_nodes(centre(8), R, N))
-    run(tracker, frames[8:12])
-    assert learned == [2, 4, 6, 10]
-
-
-@pytest.mark.parametrize("value", [-1, 8, 1.5, "2", True, None])
-def test_a_malformed_segmentation_frame_is_refused(frames: list[U8], value: object) -> None:
-    tracker = Tracker(initial())
-    run(tracker, frames[:8])
-    state = tracker.to_state()
-    state["segmented"] = value  # a frame after the last, or no frame at all
-    with pytest.raises(ValueError, match="malformed tracker state"):
-        Tracker.from_state(state)
-
-
 def test_reset_places_a_new_contour_taken_as_lying_on_the_next_frame(frames: list[U8]) -> None:
     tracker = Tracker(initial())
     run(tracker, frames[:3])
