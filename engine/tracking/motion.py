@@ -174,6 +174,29 @@ class FramePair:
         return cls((x0, y0), before, after, _halve(before), _halve(after))
 
     @classmethod
+    def given(
+        cls,
+        frames: object,
+        previous: NDArray[np.uint8],
+        current: NDArray[np.uint8],
+        nodes: NDArray[np.float64],
+    ) -> FramePair:
+        """``frames`` when it is a :class:`FramePair` made already, :meth:`around` the
+        ``[x, y]`` nodes when it is None: what a stage measuring between the two frames
+        takes as its optional ``frames``.
+
+        Raises
+        ------
+        ValueError
+            If ``frames`` is neither a :class:`FramePair` nor None.
+        """
+        if frames is None:
+            return cls.around(previous, current, nodes)
+        if not isinstance(frames, FramePair):
+            raise ValueError(f"frames must be a FramePair or None; got {type(frames).__name__}")
+        return frames
+
+    @classmethod
     def whole(cls, previous: NDArray[np.uint8], current: NDArray[np.uint8]) -> FramePair:
         """Both grey frames whole (the crop is the frame)."""
         return cls((0, 0), previous, current, _halve(previous), _halve(current))
@@ -295,10 +318,7 @@ def estimate_motion(
     ValueError
         If ``frames`` is neither a :class:`FramePair` nor None.
     """
-    if frames is None:
-        frames = FramePair.around(previous, current, nodes)
-    elif not isinstance(frames, FramePair):
-        raise ValueError(f"frames must be a FramePair or None; got {type(frames).__name__}")
+    frames = FramePair.given(frames, previous, current, nodes)
     before, after = frames.half_previous, frames.half_current
     h, w = before.shape
     if min(frames.previous.shape) < MIN_CROP:

@@ -127,10 +127,7 @@ def measure_turn(
     m = np.asarray(matrix, np.float64)
     if m.shape != (2, 3) or not np.isfinite(m).all():
         raise ValueError(f"matrix must be a finite 2 x 3 similarity; got shape {m.shape}")
-    if frames is None:
-        frames = FramePair.around(before_full, after_full, nodes)
-    elif not isinstance(frames, FramePair):
-        raise ValueError(f"frames must be a FramePair or None; got {type(frames).__name__}")
+    frames = FramePair.given(frames, before_full, after_full, nodes)
     before, after = frames.half_previous, frames.half_current
     if min(before.shape) <= WINDOW:
         return None

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from engine.geometry import circle_nodes, fit_similarity
 from engine.tracking import Tracker
-from engine.tracking.motion import estimate_motion
+from engine.tracking.motion import FramePair, estimate_motion
 from engine.tracking.shape_memory import marks_at
 from engine.tracking.turn import measure_turn, turned
 
@@ -246,8 +246,6 @@ def test_the_interior_corners_are_those_of_the_whole_image(
 
 def test_the_prediction_crops_serve_the_turn() -> None:
     """Handed the motion's crops, the turn and the motion measure exactly as without them."""
-    from engine.tracking.motion import FramePair
-
     nodes = circle_nodes(CENTRE, R, 64)
     before, after = disc_frame(0.0, 0), disc_frame(2.0, 1)
     frames = FramePair.around(before, after, nodes)
@@ -267,3 +265,15 @@ def test_crops_that_are_not_a_frame_pair_are_refused(frames: object) -> None:
         estimate_motion(before, after, nodes, frames=frames)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="FramePair"):
         measure_turn(before, after, nodes, IDENTITY, frames=frames)  # type: ignore[arg-type]
+
+
+def test_given_crops_are_used_as_they_are_and_none_are_made_anew() -> None:
+    nodes = circle_nodes(CENTRE, R, 64)
+    before, after = disc_frame(0.0, 0), disc_frame(2.0, 1)
+    made = FramePair.around(before, after, nodes)
+    assert FramePair.given(made, before, after, nodes) is made
+    anew = FramePair.given(None, before, after, nodes)
+    assert anew.origin == made.origin
+    assert np.array_equal(anew.half_current, made.half_current)
+    with pytest.raises(ValueError, match="FramePair or None; got tuple"):
+        FramePair.given((before, after), before, after, nodes)
