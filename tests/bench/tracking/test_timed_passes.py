@@ -43,6 +43,15 @@ def test_the_speed_goals_take_each_trackers_fastest_pass() -> None:
     assert "12.00 / 9.00" in frame.shown
 
 
+def test_a_speed_up_just_under_the_goal_is_not_shown_as_the_goal() -> None:
+    from bench.tracking.goals import SPEEDUP_GOAL
+
+    efdm_ms = 7.01
+    speedup, _ = speed_goals({"efdm": [efdm_ms], "skimage": [SPEEDUP_GOAL * efdm_ms - 0.1]}, "x")
+    assert speedup.passed is False
+    assert speedup.shown.startswith(f"{SPEEDUP_GOAL - 0.01:.2f}x")
+
+
 def test_passes_that_differ_fail_the_repeat_goal() -> None:
     assert repeat_goal(True, 2, "here").passed
     assert not repeat_goal(False, 2, "here").passed
