@@ -133,10 +133,11 @@ def render(results: dict[str, Any], seconds: float) -> str:
     for name, r in results.items():
         iou, alone = np.asarray(r["iou"]), r["alone_ms"]
         one, two, apart = r["together_ms"], r["two_threads_ms"], r["two_processes_ms"]
+        # ratios to two decimals: one just over the goal (6.04) must not read as it (6.0)
         lines.append(
             f"| {name} | {' '.join(f'{v:.2f}' for v in iou)} | {iou.min():.2f} | {r['swaps']} "
-            f"| {alone:.1f} | {one:.1f} ({one / alone:.1f}x) | {two:.1f} ({two / alone:.1f}x) "
-            f"| {apart:.1f} ({apart / alone:.1f}x) |"
+            f"| {alone:.1f} | {one:.1f} ({one / alone:.2f}x) | {two:.1f} ({two / alone:.2f}x) "
+            f"| {apart:.1f} ({apart / alone:.2f}x) |"
         )
     lines += [
         "",

@@ -21,8 +21,14 @@ def test_the_report_gives_ratios_and_the_worst_object() -> None:
         }
     }
     report = objects.render(results, 12.0)
-    row = "| seed 0 | 0.99 0.75 | 0.75 | 0 | 4.0 | 32.0 (8.0x) | 20.0 (5.0x) | 18.0 (4.5x) |"
+    row = "| seed 0 | 0.99 0.75 | 0.75 | 0 | 4.0 | 32.0 (8.00x) | 20.0 (5.00x) | 18.0 (4.50x) |"
     assert row in report
+
+
+def test_a_ratio_just_over_the_goal_is_not_shown_as_the_goal() -> None:
+    ms = {"alone_ms": 3.4866, "together_ms": 21.075, "two_threads_ms": 20.8}
+    results = {"seed 0": {"iou": [0.99], "swaps": 0, **ms, "two_processes_ms": 16.7}}
+    assert "21.1 (6.04x)" in objects.render(results, 1.0)
 
 
 def test_every_way_is_timed_once_a_pass_in_turn_and_the_fastest_pass_counts(
