@@ -12,7 +12,13 @@ import pytest
 
 from bench.common.data import davis_names
 from bench.tracking.config import TIMED_PASSES
-from bench.tracking.goals import MEDIAN_MS_GOAL, fastest, repeat_goal, speed_goals
+from bench.tracking.goals import (
+    MEDIAN_MS_GOAL,
+    SPEEDUP_GOAL,
+    fastest,
+    repeat_goal,
+    speed_goals,
+)
 from bench.tracking.run import ClipResult, TrackRun, same_tracks
 
 
@@ -44,8 +50,6 @@ def test_the_speed_goals_take_each_trackers_fastest_pass() -> None:
 
 
 def test_a_speed_up_just_under_the_goal_is_not_shown_as_the_goal() -> None:
-    from bench.tracking.goals import SPEEDUP_GOAL
-
     efdm_ms = 7.01
     speedup, _ = speed_goals({"efdm": [efdm_ms], "skimage": [SPEEDUP_GOAL * efdm_ms - 0.1]}, "x")
     assert speedup.passed is False
