@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import as_nodes, contour_to_mask
+from engine.geometry import as_nodes, contour_to_mask, extent
 from engine.tracking.maps import Maps
 from engine.tracking.stages import Prediction
 
@@ -109,13 +109,14 @@ def align_to_appearance(
     if not math.isfinite(gain):
         raise ValueError(f"gain must be finite; got {gain!r}")
     local = as_nodes(nodes) - np.asarray(origin, np.float64)
-    span = float((local.max(axis=0) - local.min(axis=0)).max())
-    block = max(1, round(span / SIDE))
+    low_x, low_y, high_x, high_y = extent(local)
+    block = max(1, round(max(high_x - low_x, high_y - low_y) / SIDE))
     if block > 1:  # pixel u of the blocks covers pixels block * u .. block * u + block - 1
         local = (local + 0.5) / block - 0.5
+        low_x, low_y, high_x, high_y = extent(local)
     r = math.ceil(reach / block)
-    x0, y0 = (int(v) - 1 for v in np.floor(local.min(axis=0)))
-    x1, y1 = (int(v) + 2 for v in np.ceil(local.max(axis=0)))
+    x0, y0 = math.floor(low_x) - 1, math.floor(low_y) - 1
+    x1, y1 = math.ceil(high_x) + 2, math.ceil(high_y) + 2
     if x0 - r < 0 or y0 - r < 0 or x1 + r > p.shape[1] // block or y1 + r > p.shape[0] // block:
         return None  # at the region's (the frame's) edge: no evidence beyond it
     silhouette = contour_to_mask(local - [x0, y0], (y1 - y0, x1 - x0)) > 0

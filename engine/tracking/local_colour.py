@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import contour_to_mask, perimeter
+from engine.geometry import bounding_box, contour_to_mask, perimeter
 from engine.tracking._state_codec import pack_counts, unpack_counts
 from engine.tracking.appearance import bin_count as histogram_bins
 from engine.tracking.appearance import kernel_image
@@ -97,10 +97,7 @@ class LocalColour:
         from engine.tracking._cut_kernels import learn_windows
 
         half = window_half(nodes)
-        height, width = image.shape[:2]
-        x0, y0 = (np.floor(nodes.min(axis=0)).astype(int) - half - 1).clip(0)
-        x1 = min(int(np.ceil(nodes[:, 0].max())) + half + 2, width)
-        y1 = min(int(np.ceil(nodes[:, 1].max())) + half + 2, height)
+        x0, y0, x1, y1 = bounding_box(image.shape, nodes, half + 1, half + 2, keep_inside=False)
         if x1 - x0 < 3 or y1 - y0 < 3:
             return None
         mask = contour_to_mask(nodes - [x0, y0], (y1 - y0, x1 - x0))

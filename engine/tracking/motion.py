@@ -11,13 +11,14 @@ pixel's centre has integer coordinates, at full and at half resolution.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import bounding_box, contour_to_mask, fit_similarity
+from engine.geometry import bounding_box, contour_to_mask, extent, fit_similarity
 from engine.tracking.background import MEASURE, Background, background_motion, in_region
 from engine.tracking.covering import covered_share, hidden_at
 
@@ -371,11 +372,11 @@ def estimate_motion(
     src = 2.0 * pts[good] + np.float32(0.5)
     guess = 2.0 * fwd[good] + np.float32(0.5)
     # on the points' surroundings only: the gradients are computed over the whole image
-    both = np.vstack([src, guess])
+    low_x, low_y, high_x, high_y = extent(np.vstack([src, guess]))
     reach = fine_window // 2 + 2
     h_full, w_full = frames.previous.shape
-    x0, y0 = (max(int(v) - reach, 0) for v in np.floor(both.min(axis=0)))
-    x1, y1 = (int(v) + reach + 1 for v in np.ceil(both.max(axis=0)))
+    x0, y0 = max(math.floor(low_x) - reach, 0), max(math.floor(low_y) - reach, 0)
+    x1, y1 = math.ceil(high_x) + reach + 1, math.ceil(high_y) + reach + 1
     x1, y1 = min(max(x1, x0 + 1), w_full), min(max(y1, y0 + 1), h_full)
     corner = np.array([x0, y0], np.float32)
     dst, ok_fine = track(

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.geometry import polygon_area, self_intersects
+from engine.geometry import extent, polygon_area, self_intersects
 
 __all__ = ["valid_contour"]
 
@@ -53,9 +53,9 @@ def valid_contour(
         return False
     area = abs(polygon_area(nodes))
     ref = abs(polygon_area(reference))
-    extent = float(np.ptp(nodes, axis=0).max())
+    x0, y0, x1, y1 = extent(nodes)
     if not MIN_AREA_RATIO * ref <= area <= MAX_AREA_RATIO * ref:
         return False
-    if extent > MAX_EXTENT * max(shape):
+    if max(x1 - x0, y1 - y0) > MAX_EXTENT * max(shape):
         return False
     return not (check_crossing and self_intersects(nodes))

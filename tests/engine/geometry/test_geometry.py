@@ -19,6 +19,7 @@ from engine.geometry import (
     box_outline,
     circle_nodes,
     contour_to_mask,
+    extent,
     mask_iou,
     mask_to_contour,
     mask_to_contours,
@@ -413,6 +414,26 @@ def test_as_nodes_min_count() -> None:
     assert as_nodes([[0, 0], [1, 1]], min_count=2).shape == (2, 2)
     with pytest.raises(ValueError, match="N >= 5"):
         as_nodes(np.zeros((4, 2)), min_count=5)
+
+
+# --- extent ------------------------------------------------------------------------------------
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), count=st.integers(1, 300))
+def test_extent_is_numpys_min_and_max(seed: int, count: int) -> None:
+    nodes = np.random.default_rng(seed).uniform(-1e3, 1e3, (count, 2))
+    assert extent(nodes) == (*nodes.min(axis=0), *nodes.max(axis=0))
+
+
+def test_extent_of_a_nan_node_is_nan() -> None:
+    assert all(np.isnan(v) for v in extent(np.array([[0.0, 1.0], [np.nan, 2.0]])))
+
+
+@pytest.mark.parametrize("bad", [np.zeros((0, 2)), np.zeros((3, 3)), np.zeros(4)])
+def test_extent_refuses_what_is_not_points(bad: np.ndarray) -> None:
+    with pytest.raises(ValueError, match="N >= 1, 2"):
+        extent(bad)
 
 
 # --- bounding_box ------------------------------------------------------------------------------
