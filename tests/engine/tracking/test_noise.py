@@ -5,13 +5,22 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 import engine.tracking.tracker as tracker_module
 from engine.geometry import contour_to_mask, mask_iou, mask_to_contour
 from engine.testing.synthetic import make_sequence
 from engine.tracking import Tracker
-from engine.tracking.noise import NOISY_FROM, denoised, noise_level
+from engine.tracking.noise import (
+    GRID,
+    HALF_NORMAL_MEDIAN,
+    LAPLACIAN_NORM,
+    NOISY_FROM,
+    denoised,
+    noise_level,
+)
 
 U8 = NDArray[np.uint8]
 RNG_SEED = 5
@@ -44,6 +53,50 @@ def test_clean_frames_measure_no_noise() -> None:
     for condition in ("clutter", "textured", "occluder"):
         frame = make_sequence(condition, seed=0, length=2).frames[1]
         assert noise_level(grey_of(frame)) < NOISY_FROM, condition
+
+
+def numpy_noise_level(grey: U8) -> float:
+    """The measure as numpy states it: the lower median of the responses on the grid."""
+    h, w = grey.shape
+    block = np.stack(
+        [
+            grey[r : h - 2 + r : GRID, c : w - 2 + c : GRID].astype(np.int64)
+            for r in range(3)
+            for c in range(3)
+        ]
+    )
+    kernel = np.array([1, -2, 1, -2, 4, -2, 1, -2, 1])[:, None, None]
+    response = np.sort(np.abs((kernel * block).sum(axis=0)).ravel())
+    return float(response[(response.size - 1) // 2]) / (HALF_NORMAL_MEDIAN * LAPLACIAN_NORM)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    height=st.integers(3, 40),
+    width=st.integers(3, 40),
+    kind=st.sampled_from(["uniform", "binary", "gaussian"]),
+)
+def test_the_compiled_measure_is_numpys(seed: int, height: int, width: int, kind: str) -> None:
+    """The one-pass count gives the median numpy's responses give, extremes included (a
+    checkerboard of 0 and 255 reaches the kernel's largest response)."""
+    rng = np.random.default_rng(seed)
+    if kind == "uniform":
+        grey = rng.integers(0, 256, (height, width)).astype(np.uint8)
+    elif kind == "binary":
+        grey = (255 * rng.integers(0, 2, (height, width))).astype(np.uint8)
+    else:
+        grey = np.clip(rng.normal(128.0, 40.0, (height, width)), 0, 255).astype(np.uint8)
+    assert noise_level(grey) == numpy_noise_level(grey)
+
+
+def test_the_largest_response_is_counted() -> None:
+    checker = (255 * (np.indices((9, 9)).sum(axis=0) % 2)).astype(np.uint8)
+    assert (
+        noise_level(checker)
+        == numpy_noise_level(checker)
+        == 2040 / (HALF_NORMAL_MEDIAN * LAPLACIAN_NORM)
+    )
 
 
 @pytest.mark.parametrize(
