@@ -19,6 +19,7 @@ def warm_up() -> None:
     from engine.tracking import _image_kernels as image
     from engine.tracking import _lighting_kernel as light
     from engine.tracking import _occluder_kernels as occluder
+    from engine.tracking._noise_kernel import median_response
     from engine.tracking._refine_kernel import refine_chain
     from engine.tracking._shape_kernels import best_overlap
 
@@ -29,6 +30,7 @@ def warm_up() -> None:
     geometry.resample_polyline(square, 4, True)
     geometry.least_squares_similarity(square, square, np.ones(len(square), dtype=np.bool_))
     geometry.extent(square)
+    median_response(np.zeros((3, 3), np.uint8), 6)
     geometry.fixed_point(square, 16, 1e6)
     table = np.zeros(4096, np.float32)
     for picture in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):
