@@ -62,9 +62,64 @@ def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
+SWEEP_FROM = 16
+"""Fewest points for :func:`nearest` to sweep them in x order rather than scan them all."""
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def nearest(queries: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Index of the nearest of ``points`` to each query (see engine.geometry.nearest)."""
+    """Index of the nearest of ``points`` to each query (see engine.geometry.nearest).
+
+    The points sorted by x, each query looks outward from its own x and stops where the
+    x distance alone exceeds the best squared distance found; the search starts from the
+    last query's answer and its neighbours (consecutive queries along a contour are
+    near each other), so few points are read.  The distances are the scan's, ``dx * dx +
+    dy * dy``, and equal ones go to the lowest index, so the answer is the scan's
+    (:func:`nearest_scan`, which non-finite coordinates and few points still take).
+    """
+    n = points.shape[0]
+    finite = True
+    for i in range(n):
+        finite &= math.isfinite(points[i, 0]) and math.isfinite(points[i, 1])
+    for q in range(queries.shape[0]):
+        finite &= math.isfinite(queries[q, 0]) and math.isfinite(queries[q, 1])
+    if n < SWEEP_FROM or not finite:
+        return nearest_scan(queries, points)
+    order = np.argsort(points[:, 0], kind="mergesort")
+    xs = points[order, 0]
+    found = np.empty(queries.shape[0], dtype=np.int64)
+    last = 0
+    for q in range(queries.shape[0]):
+        qx, qy = queries[q, 0], queries[q, 1]
+        best, where = np.inf, n
+        for step in range(-2, 3):  # the last answer and its neighbours along the points
+            i = (last + step) % n
+            dx, dy = points[i, 0] - qx, points[i, 1] - qy
+            d = dx * dx + dy * dy
+            if d < best or (d == best and i < where):
+                best, where = d, i
+        start = np.searchsorted(xs, qx)
+        for direction in (1, -1):
+            k = start if direction > 0 else start - 1
+            while 0 <= k < n:
+                dx = xs[k] - qx
+                if dx * dx > best:
+                    break
+                i = order[k]
+                dy = points[i, 1] - qy
+                d = dx * dx + dy * dy
+                if d < best or (d == best and i < where):
+                    best, where = d, i
+                k += direction
+        found[q] = where
+        last = where
+    return found
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def nearest_scan(queries: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Index of the nearest of ``points`` to each query, every point read (the first of
+    equally near ones; NaN distances never win)."""
     found = np.empty(queries.shape[0], dtype=np.int64)
     for q in range(queries.shape[0]):
         qx, qy = queries[q, 0], queries[q, 1]
