@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal
 
 import cv2
@@ -242,6 +242,10 @@ class Evidence:
         Whether p(object) was read from a grey frame's texture rather than from
         colour: :func:`calibrated` then reads the evidence with
         :data:`GREY_COEFFICIENTS`.
+    silhouette : numpy.ndarray or None
+        The contour's :func:`shape_mask` made to judge its shape (None: not judged, or
+        no area): the shape the tracker remembers of the frame, not made twice.  Not
+        compared.
     """
 
     inside: float
@@ -255,6 +259,7 @@ class Evidence:
     usual_outside: float | None = None
     grey: bool = False
     recent_shape: float = 0.0
+    silhouette: NDArray[np.bool_] | None = field(default=None, repr=False, compare=False)
 
     @property
     def judged_shape(self) -> float:
@@ -364,18 +369,28 @@ def evidence(
     both = found_in and found_out
     inside = float(p[inner].mean()) if both else 0.5
     outside = float(p[ring].mean()) if both else 0.5
-    shape, seen = 1.0, 0.0
+    shape, seen, mine = 1.0, 0.0, None
     if outline is not None:  # the contour's shape made once, for the outline and the recent
         mine, theirs = shape_mask(as_nodes(nodes)), shape_mask(as_nodes(outline))
         shape = 0.0 if mine is None or theirs is None else float(mask_iou(mine, theirs))
         seen = 0.0 if recent is None else recent.overlap(mine)
     if maps.motion is None or not both:
-        return Evidence(inside, outside, settled, shape=shape, recent_shape=seen)
+        return Evidence(inside, outside, settled, shape=shape, recent_shape=seen, silhouette=mine)
     # the log of the counted pixels only, not of the whole map
     motion = maps.motion[y0:y1, x0:x1]
     odds_in, odds_out = cv2.log(motion[inner]).ravel(), cv2.log(motion[ring]).ravel()
     moved_in, moved_out = float(odds_in.mean()), float(odds_out.mean())
-    return Evidence(inside, outside, settled, moved_in, moved_out, True, shape, recent_shape=seen)
+    return Evidence(
+        inside,
+        outside,
+        settled,
+        moved_in,
+        moved_out,
+        True,
+        shape,
+        recent_shape=seen,
+        silhouette=mine,
+    )
 
 
 def calibrated(e: Evidence) -> float:

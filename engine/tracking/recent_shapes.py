@@ -108,9 +108,17 @@ class RecentShapes:
     def __init__(self, shapes: Sequence[NDArray[np.bool_] | None] = ()) -> None:
         self._shapes: list[NDArray[np.bool_] | None] = list(shapes)[-RECENT_FRAMES:]
 
-    def add(self, nodes: NDArray[np.float64], remember: bool) -> None:
-        """Count a frame: its contour ``nodes`` ((N, 2) ``[x, y]``), kept if ``remember``."""
-        self._shapes.append(shape_mask(nodes) if remember else None)
+    def add(
+        self,
+        nodes: NDArray[np.float64],
+        remember: bool,
+        shape: NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Count a frame: its contour ``nodes`` ((N, 2) ``[x, y]``), kept if ``remember``;
+        ``shape``: its :func:`~engine.tracking.confidence.shape_mask` if made already."""
+        if remember and shape is None:
+            shape = shape_mask(nodes)
+        self._shapes.append(shape if remember else None)
         del self._shapes[:-RECENT_FRAMES]
 
     def overlap(self, shape: NDArray[np.bool_] | None) -> float:

@@ -540,7 +540,10 @@ class Tracker:
                 self.appearance.update(image, self._nodes)
             self.segmentation.learn(image, self._nodes)
         remember = not self._unconfirmed and remembered(attempt.evidence)
-        return self._result(refinement.iterations, refinement.converged, confidence, remember)
+        shape = attempt.evidence.silhouette  # of these nodes, made to judge them
+        return self._result(
+            refinement.iterations, refinement.converged, confidence, remember, shape
+        )
 
     def _search(
         self, image: NDArray[np.uint8], grey: NDArray[np.uint8], prediction: Prediction
@@ -598,13 +601,19 @@ class Tracker:
         self._memory = Memory.fresh(self._nodes)
 
     def _result(
-        self, iterations: int, converged: bool, confidence: float, remember: bool = False
+        self,
+        iterations: int,
+        converged: bool,
+        confidence: float,
+        remember: bool = False,
+        shape: NDArray[np.bool_] | None = None,
     ) -> TrackResult:
-        """The frame's result; ``remember``: its contour's shape is one later contours are
-        compared with (:mod:`engine.tracking.recent_shapes`)."""
+        """The frame's result; ``remember``: its contour's shape (``shape``, if made
+        already) is one later contours are compared with
+        (:mod:`engine.tracking.recent_shapes`)."""
         self._reported = confidence
         status = status_of(confidence)
-        self._memory.recent.add(self._nodes, remember and confidence > 0.0)
+        self._memory.recent.add(self._nodes, remember and confidence > 0.0, shape)
         return TrackResult(self._in_frame(self._nodes), iterations, converged, confidence, status)
 
     @staticmethod

@@ -83,6 +83,22 @@ def test_evidence_reads_the_better_of_the_outline_and_the_recent_shapes() -> Non
     assert evidence(disc_maps(), now, True, recent=recent).judged_shape == 1.0
 
 
+def test_the_judged_shape_is_the_one_remembered() -> None:
+    """The evidence keeps the contour's shape it judged; given to ``add``, that shape is
+    kept as ``add`` would have made it, and a frame not remembered keeps none."""
+    now = stretched(1.4)
+    judged = evidence(disc_maps(), now, True, outline=DISC).silhouette
+    assert judged is not None
+    np.testing.assert_array_equal(judged, shape_mask(now))
+    assert evidence(disc_maps(), now, True).silhouette is None  # the shape not judged
+    given_shape, made = RecentShapes(), RecentShapes()
+    given_shape.add(now, True, judged)
+    made.add(now, True)
+    given_shape.add(now, False, judged)
+    made.add(now, False)
+    assert given_shape.to_state() == made.to_state()
+
+
 def test_the_gate_is_the_outline_models_threshold() -> None:
     # an object-like inside, its ring a little object-like too (a banner of its colours)
     good = Evidence(0.85, 0.3, True, shape=0.95)
