@@ -354,6 +354,8 @@ def evidence(
         p = 0.5 (nothing known) inside and outside when either side falls wholly outside
         the maps.
     """
+    from engine.tracking._mean_kernels import masked_means, mean
+
     local = nodes - np.asarray(maps.origin, dtype=np.float64)
     # only the contour's box and the ring round it are read: the same pixels, in the same
     # order, as in the whole maps, and the whole-pixel shift leaves the filling exact (a
@@ -364,11 +366,10 @@ def evidence(
     outer = cv2.dilate(mask, np.ones((2 * RING + 1, 2 * RING + 1), np.uint8)) > 0
     ring = outer & (mask == 0)
     found_in, found_out = bool(inner.any()), bool(ring.any())
-    p = maps.seen[y0:y1, x0:x1]  # an occluder counts: the object is not seen there
+    p = np.asarray(maps.seen[y0:y1, x0:x1], np.float32)  # an occluder counts: not seen there
     # a side not in the maps (a contour around all of them): nothing tells it from the other
     both = found_in and found_out
-    inside = float(p[inner].mean()) if both else 0.5
-    outside = float(p[ring].mean()) if both else 0.5
+    inside, outside = masked_means(p, inner, ring) if both else (0.5, 0.5)
     shape, seen, mine = 1.0, 0.0, None
     if outline is not None:  # the contour's shape made once, for the outline and the recent
         mine, theirs = shape_mask(as_nodes(nodes)), shape_mask(as_nodes(outline))
@@ -377,9 +378,10 @@ def evidence(
     if maps.motion is None or not both:
         return Evidence(inside, outside, settled, shape=shape, recent_shape=seen, silhouette=mine)
     # the log of the counted pixels only, not of the whole map
-    motion = maps.motion[y0:y1, x0:x1]
-    odds_in, odds_out = cv2.log(motion[inner]).ravel(), cv2.log(motion[ring]).ravel()
-    moved_in, moved_out = float(odds_in.mean()), float(odds_out.mean())
+    motion = np.asarray(maps.motion[y0:y1, x0:x1], np.float32)
+    moved_in, moved_out = (
+        mean(np.asarray(cv2.log(motion[m]), np.float32).ravel()) for m in (inner, ring)
+    )
     return Evidence(
         inside,
         outside,
