@@ -62,8 +62,11 @@ def outward_normals(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
-SWEEP_FROM = 16
-"""Fewest points for :func:`nearest` to sweep them in x order rather than scan them all."""
+SWEEP_FROM = 256
+"""Fewest points for :func:`nearest` to sweep them in x order rather than scan them all.
+Within a frame's work (its caches and branch history taken by the rest) the sweep saves
+10-15 us of the scan's 40 among the 512 points of a densely resampled outline, and costs
+5 us more than the scan's 12 among a contour's 128 nodes."""
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")

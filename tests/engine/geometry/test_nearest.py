@@ -11,7 +11,7 @@ from engine.geometry import nearest
 
 
 @settings(max_examples=50, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), queries=st.integers(0, 40), points=st.integers(1, 300))
+@given(seed=st.integers(0, 2**31 - 1), queries=st.integers(0, 40), points=st.integers(1, 700))
 def test_nearest_is_the_argmin_of_the_distances(seed: int, queries: int, points: int) -> None:
     rng = np.random.default_rng(seed)
     q = rng.uniform(-50.0, 150.0, (queries, 2))
@@ -24,7 +24,7 @@ def test_nearest_is_the_argmin_of_the_distances(seed: int, queries: int, points:
 
 
 @settings(max_examples=50, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), queries=st.integers(0, 40), points=st.integers(1, 300))
+@given(seed=st.integers(0, 2**31 - 1), queries=st.integers(0, 40), points=st.integers(1, 700))
 def test_on_a_grid_of_ties_the_answer_is_the_full_scans(
     seed: int, queries: int, points: int
 ) -> None:
@@ -50,9 +50,10 @@ def test_contour_to_contour_as_the_tracker_asks() -> None:
 def test_non_finite_points_never_win() -> None:
     """A NaN point is never the nearest of a finite query, and an infinite query, no
     distance of which is finite, gets index 0: what a full scan's strict comparisons give."""
-    p = np.array([[np.nan, 0.0]] + [[float(i), 0.0] for i in range(1, 40)])
-    q = np.array([[0.0, 0.0], [np.inf, 0.0], [20.2, 1.0]])
-    assert nearest(q, p).tolist() == [1, 0, 20]
+    for count in (40, 400):  # read in full, and swept
+        p = np.array([[np.nan, 0.0]] + [[float(i), 0.0] for i in range(1, count)])
+        q = np.array([[0.0, 0.0], [np.inf, 0.0], [20.2, 1.0]])
+        assert nearest(q, p).tolist() == [1, 0, 20]
 
 
 def test_ties_go_to_the_lowest_index() -> None:
