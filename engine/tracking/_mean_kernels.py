@@ -2,13 +2,13 @@
 
 The confidence (:func:`engine.tracking.confidence.evidence`) reads the mean p(object)
 of the pixels inside a contour and of a ring outside it.  ``p[mask].mean()`` gathers the
-pixels into a new array and sums them through numpy's reduction machinery: 0.03-0.04 ms
-each, a frame.  Here one pass reads both masks and sums each side's pixels in the
-order and the float32 arithmetic of numpy's pairwise summation (``pairwise_sum`` in
-numpy's ``loops_utils.h``: blocks of up to 128 values summed in eight interleaved
-partial sums, larger ones halved at a multiple of 8, added to the reduction's identity,
-0), then divides by the count in float32 as ``numpy.mean`` does: the same bits.
-"""
+pixels into a new array and sums them through numpy's reduction machinery.  Here one
+pass gathers both sides and sums each in the order and the float32 arithmetic of
+numpy's pairwise summation (``pairwise_sum`` in numpy's ``loops_utils.h``: runs of up
+to 128 values summed in eight interleaved partial sums, longer ones halved at a multiple
+of 8, added to the reduction's identity, 0), then divides by the count in float32 as
+``numpy.mean`` does: the same bits.  Timed within the tracker's frames on the
+validation sequences (contour boxes of about 62,000 pixels), 0.047 against 0.074 ms."""
 
 from __future__ import annotations
 
@@ -30,23 +30,21 @@ there are at most 63 of them for 2^63 values."""
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _block(values: NDArray[np.float32], start: int, count: int) -> np.float32:
     """numpy's float32 ``pairwise_sum`` of a run of at most :data:`BLOCK` values."""
+    total: np.float32 = np.float32(0.0)
     if count < LANES:
-        total = np.float32(0.0)
         for i in range(count):
-            total = np.float32(total + values[start + i])
+            total += values[start + i]
         return total
-    lanes = values[start : start + LANES].copy()
+    a = values[start : start + count]
+    r0, r1, r2, r3, r4, r5, r6, r7 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
     i = LANES
-    while i < count - count % LANES:
-        for j in range(LANES):
-            lanes[j] = np.float32(lanes[j] + values[start + i + j])
+    while i < count - count % LANES:  # eight partial sums, as numpy keeps them
+        r0, r1, r2, r3 = r0 + a[i], r1 + a[i + 1], r2 + a[i + 2], r3 + a[i + 3]
+        r4, r5, r6, r7 = r4 + a[i + 4], r5 + a[i + 5], r6 + a[i + 6], r7 + a[i + 7]
         i += LANES
-    total = np.float32(
-        np.float32(np.float32(lanes[0] + lanes[1]) + np.float32(lanes[2] + lanes[3]))
-        + np.float32(np.float32(lanes[4] + lanes[5]) + np.float32(lanes[6] + lanes[7]))
-    )
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
     while i < count:
-        total = np.float32(total + values[start + i])
+        total += a[i]
         i += 1
     return total
 
@@ -106,13 +104,12 @@ def masked_means(
     twos = np.empty(h * w, np.float32)
     m = n = 0
     for y in range(h):
-        for x in range(w):
-            if first[y, x]:
-                ones[m] = values[y, x]
-                m += 1
-            if second[y, x]:
-                twos[n] = values[y, x]
-                n += 1
+        for x in range(w):  # written always, kept when masked: no branch to mispredict
+            v = values[y, x]
+            ones[m] = v
+            m += first[y, x]
+            twos[n] = v
+            n += second[y, x]
     one = np.float32(pairwise_sum(ones[:m]) / np.float32(m)) if m else np.float32(np.nan)
     two = np.float32(pairwise_sum(twos[:n]) / np.float32(n)) if n else np.float32(np.nan)
     return float(one), float(two)
