@@ -19,6 +19,7 @@ def warm_up() -> None:
     from engine.tracking import _image_kernels as image
     from engine.tracking import _lighting_kernel as light
     from engine.tracking import _occluder_kernels as occluder
+    from engine.tracking._label_kernels import colour_spread, label_shares
     from engine.tracking._mean_kernels import masked_means, mean
     from engine.tracking._noise_kernel import median_response
     from engine.tracking._refine_kernel import refine_chain
@@ -36,6 +37,8 @@ def warm_up() -> None:
     for view in (np.ones((2, 2), np.float32), np.ones((3, 3), np.float32)[1:, 1:]):
         masked_means(view, some, some)  # the contour's box: the whole maps, or a view
     mean(np.ones(200, np.float32))
+    label_shares(np.zeros((2, 2), np.int32), np.ones((2, 2), np.uint8), 1)
+    colour_spread(np.zeros((2, 2, 3), np.uint8), 1, 2)
     geometry.fixed_point(square, 16, 1e6)
     table = np.zeros(4096, np.float32)
     for picture in (np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2, 1), np.uint8)):

@@ -283,17 +283,20 @@ _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 
 def _main_piece(seg: NDArray[np.bool_], prior: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
     """The cut's piece that covers most of the prior (None: keep the chain's contour)."""
+    from engine.tracking._label_kernels import label_shares
+
     pieces, labels = cv2.connectedComponents(seg.astype(np.uint8), connectivity=8)
     if pieces < 2:
         return None
-    share = np.bincount(labels[prior > 0], minlength=pieces)[1:]
+    counts, covered = label_shares(np.asarray(labels, np.int32), prior, pieces)
+    share = counts[1:]
     best = int(np.argmax(share))
     piece: NDArray[np.bool_] = labels == best + 1
     size = int(np.count_nonzero(piece))
     second = np.sort(share)[-2] if len(share) > 1 else 0
     if (
         size <= MIN_PIXELS
-        or share[best] <= MIN_OVERLAP * np.count_nonzero(prior)
+        or share[best] <= MIN_OVERLAP * covered
         or second > SPLIT_SHARE * share[best]
     ):
         return None

@@ -122,16 +122,17 @@ def is_grey(image: NDArray[np.uint8]) -> bool:
     ValueError
         If ``image`` is not an H x W or H x W x 3 array.
     """
+    from engine.tracking._label_kernels import colour_spread
+
     _check(image, "is_grey")
     if image.ndim == 2:
         return True
-    # a coarse look first: a colour frame is almost always told at once (tens of
-    # microseconds instead of half a millisecond for the fine grid)
-    for step in (GREY_GLANCE, GREY_SAMPLE):
-        sample = image[::step, ::step].astype(np.int16)
-        if (sample.max(axis=2) - sample.min(axis=2)).max(initial=0) > GREY_TOLERANCE:
-            return False
-    return True
+    # a coarse look first: a colour frame is almost always told at once, at its first
+    # coloured pixel (microseconds instead of half a millisecond for the fine grid)
+    pixels = np.asarray(image, np.uint8)
+    return not any(
+        colour_spread(pixels, step, GREY_TOLERANCE) for step in (GREY_GLANCE, GREY_SAMPLE)
+    )
 
 
 def is_tinted(image: NDArray[np.uint8], tolerance: float = TINT_TOLERANCE) -> bool:
