@@ -16,6 +16,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.geometry._pairwise import pairwise_sum
+
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def polyline_crosses(points: NDArray[np.float64], closed: bool) -> bool:
@@ -41,6 +43,19 @@ def polyline_crosses(points: NDArray[np.float64], closed: bool) -> bool:
             if o3 * o4 < 0.0:
                 return True
     return False
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def perimeter(nodes: NDArray[np.float64]) -> float:
+    """Length of the closed polygon through (N >= 1, 2) ``nodes``, as numpy's
+    ``norm(diff(closed), axis=1).sum()`` gives it (see engine.geometry.perimeter)."""
+    n = nodes.shape[0]
+    lengths = np.empty(n)
+    for i in range(n):
+        k = (i + 1) % n
+        dx, dy = nodes[k, 0] - nodes[i, 0], nodes[k, 1] - nodes[i, 1]
+        lengths[i] = math.sqrt(dx * dx + dy * dy)
+    return float(pairwise_sum(lengths))
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")

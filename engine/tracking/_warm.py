@@ -28,6 +28,7 @@ def warm_up() -> None:
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     geometry.polyline_crosses(square, True)
     geometry.outward_normals(square)
+    geometry.perimeter(square)
     geometry.nearest(square, square)
     geometry.resample_polyline(square, 4, True)
     geometry.least_squares_similarity(square, square, np.ones(len(square), dtype=np.bool_))

@@ -1,4 +1,4 @@
-"""engine.tracking._mean_kernels: numpy's float32 sums and means, bit for bit."""
+"""engine.tracking._mean_kernels: numpy's float32 means under masks, bit for bit."""
 
 from __future__ import annotations
 
@@ -6,21 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.tracking._mean_kernels import masked_means, mean, pairwise_sum
-
-
-@settings(max_examples=80, deadline=None)
-@given(
-    seed=st.integers(0, 2**31 - 1),
-    count=st.one_of(st.integers(0, 300), st.integers(300, 40_000)),
-    spread=st.floats(1e-3, 1e3),
-)
-def test_the_sum_is_numpys_bit_for_bit(seed: int, count: int, spread: float) -> None:
-    """Every branch of the pairwise summation: under 8 values, one block, halvings."""
-    values = (np.random.default_rng(seed).standard_normal(count) * spread).astype(np.float32)
-    assert pairwise_sum(values) == values.sum()
-    if count:
-        assert mean(values) == float(values.mean())
+from engine.tracking._mean_kernels import masked_means, mean
 
 
 @settings(max_examples=60, deadline=None)
@@ -49,8 +35,8 @@ def test_masked_means_are_numpys_bit_for_bit(
         assert np.isnan(outside)
 
 
-def test_a_long_run_of_equal_values_is_exact() -> None:
-    """A million ones: where a running sum in float32 would stall at 2^24, the pairwise
-    sum is exact, as numpy's is."""
-    ones = np.ones(1_000_000, np.float32)
-    assert pairwise_sum(ones) == ones.sum() == 1_000_000.0
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), count=st.integers(1, 40_000))
+def test_the_mean_is_numpys_bit_for_bit(seed: int, count: int) -> None:
+    values = (np.random.default_rng(seed).standard_normal(count) * 7.0).astype(np.float32)
+    assert mean(values) == float(values.mean())
