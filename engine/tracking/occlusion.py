@@ -256,10 +256,8 @@ def piece_overlaps(
         return labels, none
     pixels = np.ascontiguousarray(image if image.ndim == 3 else image[:, :, None])
     # the pieces, at full resolution within the covered pixels' box
-    rows_hit = np.flatnonzero(covered.any(axis=1))
-    cols_hit = np.flatnonzero(covered.any(axis=0))
-    top, bottom = int(rows_hit[0]), int(rows_hit[-1]) + 1
-    left, right = int(cols_hit[0]), int(cols_hit[-1]) + 1
+    left, top, width, height = cv2.boundingRect(np.ascontiguousarray(covered).view(np.uint8))
+    right, bottom = left + width, top + height
     count, found = cv2.connectedComponents(
         covered[top:bottom, left:right].astype(np.uint8), connectivity=8
     )
