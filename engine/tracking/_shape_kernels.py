@@ -15,11 +15,17 @@ __all__ = ["best_overlap"]
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def best_overlap(stack: NDArray[np.bool_], shape: NDArray[np.bool_]) -> float:
-    """The largest IoU of ``shape`` (H x W) with any of ``stack``'s (K x H x W, K >= 1)
-    grids: ``common / max(union, 1)`` each, as numpy divides two integer counts."""
+def best_overlap(
+    stack: NDArray[np.bool_], kept: NDArray[np.bool_], shape: NDArray[np.bool_]
+) -> float:
+    """The largest IoU of ``shape`` (H x W) with any of ``stack``'s (K x H x W) grids
+    ``k`` where ``kept[k]`` (at least one): ``common / max(union, 1)`` each, as numpy
+    divides two integer counts."""
     best = 0.0
+    first = True
     for k in range(stack.shape[0]):
+        if not kept[k]:
+            continue
         common = 0
         union = 0
         for i in range(shape.shape[0]):
@@ -28,6 +34,7 @@ def best_overlap(stack: NDArray[np.bool_], shape: NDArray[np.bool_]) -> float:
                 common += a and b
                 union += a or b
         value = common / max(union, 1)
-        if k == 0 or value > best:
+        if first or value > best:
             best = value
+        first = False
     return best

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from engine.geometry import circle_nodes
 from engine.tracking._shape_kernels import best_overlap
+from engine.tracking._state_codec import pack_raw
 from engine.tracking.confidence import (
     Evidence,
     calibrated,
@@ -128,12 +129,17 @@ def test_the_recent_shapes_survive_the_state_bit_for_bit() -> None:
         [None] * (RECENT_FRAMES + 1),
         [3],
         ["not base64 at all"],
-        [RecentShapes([np.zeros((8, 8), bool)]).to_state()[0]],  # the wrong size
+        [pack_raw(np.packbits(np.zeros((8, 8), bool)))],  # the wrong size
     ],
 )
 def test_malformed_recent_shapes_are_refused(bad: object) -> None:
     with pytest.raises(ValueError, match="recent shape"):
         RecentShapes.from_state(bad)
+
+
+def test_a_shape_of_the_wrong_size_is_refused() -> None:
+    with pytest.raises(ValueError, match="recent shape must be"):
+        RecentShapes([np.zeros((8, 8), bool)])
 
 
 @settings(max_examples=30, deadline=None)
@@ -145,4 +151,30 @@ def test_the_best_overlap_is_numpys_count(kept: int, seed: int, fill: float) -> 
     shape = rng.uniform(size=(24, 24)) < fill
     union = np.count_nonzero(stack | shape, axis=(1, 2))
     common = np.count_nonzero(stack & shape, axis=(1, 2))
-    assert best_overlap(stack, shape) == float(np.max(common / np.maximum(union, 1)))
+    flags = rng.uniform(size=kept) < 0.7
+    flags[rng.integers(kept)] = True  # at least one kept
+    iou = common / np.maximum(union, 1)
+    assert best_overlap(stack, flags, shape) == float(np.max(iou[flags]))
+
+
+def test_the_ring_holds_the_last_frames_in_any_order_of_slots() -> None:
+    """More frames than the ring has slots: the comparison reads the same shapes as the
+    list kept for the state, whatever slot each landed in, and so does a restored copy."""
+    recent = RecentShapes()
+    for k in range(2 * RECENT_FRAMES + 3):  # wrapped round twice, every third not kept
+        recent.add(stretched(1.0 + 0.05 * k), k % 3 != 0)
+    restored = RecentShapes.from_state(json.loads(json.dumps(recent.to_state())))
+    kept = [
+        shape_mask(stretched(1.0 + 0.05 * k))
+        for k in range(RECENT_FRAMES + 3, 2 * RECENT_FRAMES + 3)
+        if k % 3
+    ]
+    for probe in (stretched(1.2), stretched(2.5), stretched(3.0)):
+        mine = shape_mask(probe)
+        assert mine is not None
+        expected = max(
+            int(np.count_nonzero(s & mine)) / max(int(np.count_nonzero(s | mine)), 1)
+            for s in kept
+            if s is not None
+        )
+        assert recent.overlap(mine) == restored.overlap(mine) == expected
