@@ -189,10 +189,13 @@ class BandCut:
             )
             if motion is not None:
                 local = with_motion(np.asarray(local, np.float32), motion)
-            # occluded pixels stay neutral, as the cue stage made them
+            local = np.asarray(local, np.float32)
+            # occluded pixels stay neutral, as the cue stage made them: written in place,
+            # since ``local`` is new here, or ``probability`` itself (no window knew
+            # better), whose own values then go back where they were
             if observed is not None:
-                local = np.where(probability != observed, probability, local)
-            probability = np.asarray(local, dtype=np.float32)
+                np.copyto(local, probability, where=probability != observed)
+            probability = local
         seg = regrow(_cut(distance, band, region, probability, scale), distance, band, probability)
         if self.carve:
             seg = carve(seg, distance, band, probability)
