@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from engine.geometry._pairwise import pairwise_sum
 
-__all__ = ["masked_means", "mean"]
+__all__ = ["masked_means", "masked_values", "mean"]
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -28,11 +28,11 @@ def mean(values: NDArray[np.float32]) -> float:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def masked_means(
+def masked_values(
     values: NDArray[np.float32], first: NDArray[np.bool_], second: NDArray[np.bool_]
-) -> tuple[float, float]:
-    """``values[first].mean()`` and ``values[second].mean()`` (H x W each), bit for bit;
-    NaN for an empty mask, as numpy gives (with a warning there)."""
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """``values[first]`` and ``values[second]`` (H x W each), gathered in one pass, in
+    numpy's row-major order."""
     h, w = values.shape
     ones = np.empty(h * w, np.float32)
     twos = np.empty(h * w, np.float32)
@@ -44,6 +44,16 @@ def masked_means(
             m += first[y, x]
             twos[n] = v
             n += second[y, x]
-    one = np.float32(pairwise_sum(ones[:m]) / np.float32(m)) if m else np.float32(np.nan)
-    two = np.float32(pairwise_sum(twos[:n]) / np.float32(n)) if n else np.float32(np.nan)
-    return float(one), float(two)
+    return ones[:m], twos[:n]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def masked_means(
+    values: NDArray[np.float32], first: NDArray[np.bool_], second: NDArray[np.bool_]
+) -> tuple[float, float]:
+    """``values[first].mean()`` and ``values[second].mean()`` (H x W each), bit for bit;
+    NaN for an empty mask, as numpy gives (with a warning there)."""
+    ones, twos = masked_values(values, first, second)
+    one = mean(ones) if len(ones) else np.nan
+    two = mean(twos) if len(twos) else np.nan
+    return one, two

@@ -20,7 +20,7 @@ def warm_up() -> None:
     from engine.tracking import _lighting_kernel as light
     from engine.tracking import _occluder_kernels as occluder
     from engine.tracking._label_kernels import colour_spread, label_shares
-    from engine.tracking._mean_kernels import masked_means, mean
+    from engine.tracking._mean_kernels import masked_means, masked_values, mean
     from engine.tracking._noise_kernel import median_response
     from engine.tracking._refine_kernel import refine_chain
     from engine.tracking._shape_kernels import best_overlap
@@ -37,6 +37,7 @@ def warm_up() -> None:
     some = np.ones((2, 2), np.bool_)
     for view in (np.ones((2, 2), np.float32), np.ones((3, 3), np.float32)[1:, 1:]):
         masked_means(view, some, some)  # the contour's box: the whole maps, or a view
+        masked_values(view, some, some)
     mean(np.ones(200, np.float32))
     label_shares(np.zeros((2, 2), np.int32), np.ones((2, 2), np.uint8), 1)
     colour_spread(np.zeros((2, 2, 3), np.uint8), 1, 2)

@@ -354,7 +354,7 @@ def evidence(
         p = 0.5 (nothing known) inside and outside when either side falls wholly outside
         the maps.
     """
-    from engine.tracking._mean_kernels import masked_means, mean
+    from engine.tracking._mean_kernels import masked_means, masked_values, mean
 
     local = nodes - np.asarray(maps.origin, dtype=np.float64)
     # only the contour's box and the ring round it are read: the same pixels, in the same
@@ -380,7 +380,7 @@ def evidence(
     # the log of the counted pixels only, not of the whole map
     motion = np.asarray(maps.motion[y0:y1, x0:x1], np.float32)
     moved_in, moved_out = (
-        mean(np.asarray(cv2.log(motion[m]), np.float32).ravel()) for m in (inner, ring)
+        mean(np.asarray(cv2.log(v), np.float32).ravel()) for v in masked_values(motion, inner, ring)
     )
     return Evidence(
         inside,

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.tracking._mean_kernels import masked_means, mean
+from engine.tracking._mean_kernels import masked_means, masked_values, mean
 
 
 @settings(max_examples=60, deadline=None)
@@ -24,6 +24,9 @@ def test_masked_means_are_numpys_bit_for_bit(
     whole = rng.random((height + 4, width + 4)).astype(np.float32)
     values = whole[2:-2, 2:-2]  # a view, as the contour's box of the maps
     first, second = rng.random((2, height, width)) < share
+    ones, twos = masked_values(values, first, second)
+    np.testing.assert_array_equal(ones, values[first])
+    np.testing.assert_array_equal(twos, values[second])
     inside, outside = masked_means(values, first, second)
     if first.any():
         assert inside == float(values[first].mean())
