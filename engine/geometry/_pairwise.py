@@ -87,7 +87,6 @@ def _pairwise(values: Floats) -> np.floating[Any]:
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def pairwise_sum(values: Floats) -> np.floating[Any]:
     """``values.sum()`` of a 1-D float32 or float64 array, bit for bit."""
-    result: np.floating[Any] = values.dtype.type(0) + _pairwise(
-        values
-    )  # numpy starts from 0 (-0.0 -> 0.0)
+    zero = values.dtype.type(0)  # numpy adds the sum to its identity: -0.0 becomes 0.0
+    result: np.floating[Any] = zero + _pairwise(values)
     return result
