@@ -373,6 +373,8 @@ def evidence(
     shape, seen, mine = 1.0, 0.0, None
     if outline is not None:  # the contour's shape made once, for the outline and the recent
         mine, theirs = shape_mask(as_nodes(nodes)), shape_mask(as_nodes(outline))
+        if mine is not None:  # kept as the evidence's silhouette: read, never written
+            mine.setflags(write=False)
         shape = 0.0 if mine is None or theirs is None else float(mask_iou(mine, theirs))
         seen = 0.0 if recent is None else recent.overlap(mine)
     if maps.motion is None or not both:

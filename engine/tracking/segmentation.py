@@ -190,10 +190,10 @@ class BandCut:
             if motion is not None:
                 local = with_motion(np.asarray(local, np.float32), motion)
             local = np.asarray(local, np.float32)
-            # occluded pixels stay neutral, as the cue stage made them: written in place,
-            # since ``local`` is new here, or ``probability`` itself (no window knew
-            # better), whose own values then go back where they were
-            if observed is not None:
+            # occluded pixels stay neutral, as the cue stage made them: written in place
+            # into ``local``, new here unless it is ``probability`` itself (no window knew
+            # better), which has them already
+            if observed is not None and local is not probability:
                 np.copyto(local, probability, where=probability != observed)
             probability = local
         seg = regrow(_cut(distance, band, region, probability, scale), distance, band, probability)
