@@ -67,7 +67,10 @@ def warm_up() -> None:
     histogram.blended(bins, bins, 0.05)
     histogram.shares(np.ones(8, np.int64))
     grid = np.ones((2, 2), np.bool_)
-    best_overlap(grid[None], np.ones(1, np.bool_), grid)
+    judged = grid.copy()
+    judged.setflags(write=False)  # the evidence's silhouette is read-only
+    for shape in (grid, judged):
+        best_overlap(grid[None], np.ones(1, np.bool_), shape)
     maps = np.zeros((4, 4), np.float32)
     image.scale_and_clip(image.sobel_magnitude(maps), 1.0)
     image.scale_odds(maps, maps)
